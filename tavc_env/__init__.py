@@ -1,0 +1,46 @@
+"""tavc-env: the prioritized transportation arena of Dahl, Mataric & Sukhatme (DARS 2004) as a
+PettingZoo environment on pymunk physics.
+
+    import tavc_env
+    env = tavc_env.parallel_env(preset="dahl2004")
+    observations, infos = env.reset(seed=0)
+"""
+
+from tavc_env.config import (
+    PRESETS,
+    ArenaConfig,
+    Breakdown,
+    Circuit,
+    Robot,
+    lane_circuits,
+    make_config,
+    preset,
+    robots_from_speeds,
+)
+from tavc_env.env import ENV_NAME, TavcArenaEnv, env, parallel_env, raw_env
+from tavc_env.registration import REGISTRY_ID, register
+from tavc_env.simulation import Simulation
+
+register()
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ENV_NAME",
+    "PRESETS",
+    "REGISTRY_ID",
+    "ArenaConfig",
+    "Breakdown",
+    "Circuit",
+    "Robot",
+    "Simulation",
+    "TavcArenaEnv",
+    "__version__",
+    "env",
+    "lane_circuits",
+    "make_config",
+    "parallel_env",
+    "preset",
+    "raw_env",
+    "robots_from_speeds",
+]

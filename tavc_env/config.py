@@ -1,0 +1,378 @@
+"""Configuration of the prioritized transportation arena: frozen, validated dataclasses and presets.
+
+Everything physical about an arena lives here (geometry, robots, stations, controller limits, the
+physics step and scheduled breakdowns). RL-facing options (time limits, reward units, stepping mode)
+are arguments of the environment, not of the arena.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+Point = tuple[float, float]
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _require(condition: bool, name: str, value: object, allowed: str) -> None:
+    if not condition:
+        raise ValueError(f"{name} = {value!r} is invalid; allowed: {allowed}")
+
+
+def _point(name: str, value: object) -> Point:
+    ok = (
+        isinstance(value, Sequence)
+        and not isinstance(value, str)
+        and len(value) == 2
+        and all(_is_number(v) for v in value)
+    )
+    _require(ok, name, value, "a pair of finite numbers (x, y) in metres")
+    assert isinstance(value, Sequence)
+    return (float(value[0]), float(value[1]))
+
+
+@dataclass(frozen=True)
+class Circuit:
+    """One source/sink pair and the value `w` of a delivery on it.
+
+    `queue_direction` points from each station's dock along the line where robots wait their turn
+    (the first waiting slot is `queue_offset_m` from the dock, then every `queue_spacing_m`).
+    """
+
+    source: Point
+    sink: Point
+    value: float
+    queue_direction: Point = (1.0, 0.0)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "source", _point("circuit.source", self.source))
+        object.__setattr__(self, "sink", _point("circuit.sink", self.sink))
+        d = _point("circuit.queue_direction", self.queue_direction)
+        norm = math.hypot(*d)
+        _require(norm > 0, "circuit.queue_direction", self.queue_direction, "a non-zero vector")
+        object.__setattr__(self, "queue_direction", (d[0] / norm, d[1] / norm))
+        _require(
+            _is_number(self.value) and self.value > 0,
+            "circuit.value",
+            self.value,
+            "a finite number > 0",
+        )
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A robot's nominal top speed (m/s) and a speed-class label used only for reporting."""
+
+    speed: float
+    speed_class: str = ""
+
+    def __post_init__(self) -> None:
+        _require(
+            _is_number(self.speed) and 0 < self.speed <= 2.0,
+            "robot.speed",
+            self.speed,
+            "a finite speed in (0, 2] m/s",
+        )
+
+
+@dataclass(frozen=True)
+class Breakdown:
+    """Robot `robot` (index) breaks down at `at_s` simulated seconds; repaired `repair_after_s` later
+    (None: stays broken until `repair` is called)."""
+
+    robot: int
+    at_s: float
+    repair_after_s: float | None = None
+
+    def __post_init__(self) -> None:
+        _require(
+            isinstance(self.robot, int) and not isinstance(self.robot, bool) and self.robot >= 0,
+            "breakdown.robot",
+            self.robot,
+            "a robot index >= 0",
+        )
+        _require(
+            _is_number(self.at_s) and self.at_s >= 0, "breakdown.at_s", self.at_s, "a time >= 0 s"
+        )
+        _require(
+            self.repair_after_s is None
+            or (_is_number(self.repair_after_s) and self.repair_after_s > 0),
+            "breakdown.repair_after_s",
+            self.repair_after_s,
+            "None or a duration > 0 s",
+        )
+
+
+@dataclass(frozen=True)
+class ArenaConfig:
+    """The physical arena. Lengths in metres, times in seconds, speeds in m/s.
+
+    Stations (one source and one sink per circuit) serve one robot at a time: a robot must reach the
+    dock, stand there for the service time (loading at a source, unloading at a sink), and leave.
+    Robots that arrive while a station is busy wait in a physical line beside it, first come first
+    served. This is where most interference comes from (see DESIGN.md section 2 and the README).
+    """
+
+    width: float = 12.0
+    height: float = 8.0
+    circuits: tuple[Circuit, ...] = ()
+    robots: tuple[Robot, ...] = ()
+    robot_radius: float = 0.22
+    source_service_s: float = 20.0
+    sink_service_s: float = 4.0
+    queue_offset_m: float = 0.9
+    queue_spacing_m: float = 0.6
+    join_radius_m: float = 1.5
+    dock_tolerance_m: float = 0.12
+    speed_noise: float = 0.1
+    max_turn_rate: float = 1.75
+    sensing_range_m: float = 1.0
+    dt: float = 0.1
+    breakdowns: tuple[Breakdown, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "circuits", tuple(self.circuits))
+        object.__setattr__(self, "robots", tuple(self.robots))
+        object.__setattr__(self, "breakdowns", tuple(self.breakdowns))
+        self._validate()
+
+    @property
+    def n_circuits(self) -> int:
+        return len(self.circuits)
+
+    @property
+    def n_robots(self) -> int:
+        return len(self.robots)
+
+    def _validate(self) -> None:
+        positive = {
+            "width": self.width,
+            "height": self.height,
+            "robot_radius": self.robot_radius,
+            "queue_offset_m": self.queue_offset_m,
+            "queue_spacing_m": self.queue_spacing_m,
+            "join_radius_m": self.join_radius_m,
+            "dock_tolerance_m": self.dock_tolerance_m,
+            "max_turn_rate": self.max_turn_rate,
+            "sensing_range_m": self.sensing_range_m,
+        }
+        for name, value in positive.items():
+            _require(_is_number(value) and value > 0, name, value, "a finite number > 0")
+        for name in ("source_service_s", "sink_service_s"):
+            value = getattr(self, name)
+            _require(_is_number(value) and value >= 0, name, value, "a finite time >= 0 s")
+        _require(
+            _is_number(self.dt) and 0 < self.dt <= 0.5,
+            "dt",
+            self.dt,
+            "a physics step in (0, 0.5] s",
+        )
+        _require(
+            _is_number(self.speed_noise) and 0 <= self.speed_noise <= 0.3,
+            "speed_noise",
+            self.speed_noise,
+            "a relative standard deviation in [0, 0.3]",
+        )
+        _require(
+            self.robot_radius * 4 <= min(self.width, self.height),
+            "robot_radius",
+            self.robot_radius,
+            f"at most a quarter of the arena's smaller side ({min(self.width, self.height) / 4} m)",
+        )
+        _require(
+            self.queue_spacing_m >= 2 * self.robot_radius,
+            "queue_spacing_m",
+            self.queue_spacing_m,
+            f">= the robot diameter {2 * self.robot_radius} m",
+        )
+        _require(
+            self.queue_offset_m >= 2 * self.robot_radius,
+            "queue_offset_m",
+            self.queue_offset_m,
+            f">= the robot diameter {2 * self.robot_radius} m",
+        )
+        _require(len(self.circuits) >= 1, "circuits", self.circuits, "at least one Circuit")
+        _require(len(self.robots) >= 1, "robots", self.robots, "at least one Robot")
+        for i, c in enumerate(self.circuits):
+            _require(isinstance(c, Circuit), f"circuits[{i}]", c, "a tavc_env.Circuit")
+        for i, r in enumerate(self.robots):
+            _require(isinstance(r, Robot), f"robots[{i}]", r, "a tavc_env.Robot")
+        margin = self.robot_radius + 0.05
+        inside = f"x in [{margin}, {self.width - margin}], y in [{margin}, {self.height - margin}]"
+        stations: list[tuple[str, Point]] = []
+        for i, c in enumerate(self.circuits):
+            for kind, p in (("source", c.source), ("sink", c.sink)):
+                name = f"circuits[{i}].{kind}"
+                ok = (
+                    margin <= p[0] <= self.width - margin and margin <= p[1] <= self.height - margin
+                )
+                _require(ok, name, p, f"a point inside the arena: {inside}")
+                stations.append((name, p))
+        # Two docks closer than two robot diameters would make one robot's service block the other
+        # station, so the circuits would not be separate task classes.
+        min_gap = 4 * self.robot_radius
+        for a in range(len(stations)):
+            for b in range(a + 1, len(stations)):
+                (na, pa), (nb, pb) = stations[a], stations[b]
+                gap = math.dist(pa, pb)
+                _require(
+                    gap >= min_gap,
+                    f"{nb} (distance to {na})",
+                    round(gap, 3),
+                    f"stations at least {min_gap} m apart (overlapping circuits)",
+                )
+        for i, event in enumerate(self.breakdowns):
+            _require(
+                isinstance(event, Breakdown), f"breakdowns[{i}]", event, "a tavc_env.Breakdown"
+            )
+            _require(
+                event.robot < self.n_robots,
+                f"breakdowns[{i}].robot",
+                event.robot,
+                f"a robot index in [0, {self.n_robots - 1}]",
+            )
+        free_area = self.width * self.height
+        footprint = self.n_robots * (2 * self.robot_radius + 0.1) ** 2
+        _require(
+            footprint <= 0.25 * free_area,
+            "robots",
+            f"{self.n_robots} robots",
+            f"at most {int(0.25 * free_area / (2 * self.robot_radius + 0.1) ** 2)} robots of radius "
+            f"{self.robot_radius} m in a {self.width} x {self.height} m arena (robots cannot fit)",
+        )
+
+    def replace(self, **changes: Any) -> ArenaConfig:
+        """A copy with fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+
+def lane_circuits(
+    n_circuits: int,
+    width: float = 12.0,
+    height: float = 8.0,
+    values: Sequence[float] | None = None,
+    wall_margin: float = 1.5,
+) -> tuple[Circuit, ...]:
+    """Circuits as vertical lanes spread across the arena: source at the top, sink at the bottom.
+
+    Lanes sit `wall_margin` from the side walls and are evenly spaced between, so crossing from one
+    circuit's sink to another circuit's source is a long diagonal: circuits are spatially
+    classifiable. Waiting lines run along the top and bottom walls toward the arena's centre.
+    """
+    _require(
+        isinstance(n_circuits, int) and n_circuits >= 1,
+        "n_circuits",
+        n_circuits,
+        "an integer >= 1",
+    )
+    if values is None:
+        values = [2200.0 - 200.0 * i for i in range(n_circuits)]
+    _require(
+        len(values) == n_circuits, "values", values, f"a sequence of {n_circuits} circuit values"
+    )
+    xs = (
+        [width / 2]
+        if n_circuits == 1
+        else [
+            wall_margin + i * (width - 2 * wall_margin) / (n_circuits - 1)
+            for i in range(n_circuits)
+        ]
+    )
+    circuits = []
+    for x, w in zip(xs, values):
+        direction = (1.0, 0.0) if x <= width / 2 else (-1.0, 0.0)
+        circuits.append(
+            Circuit(
+                source=(x, height - wall_margin),
+                sink=(x, wall_margin),
+                value=float(w),
+                queue_direction=direction,
+            )
+        )
+    return tuple(circuits)
+
+
+def _dahl2004() -> ArenaConfig:
+    fast = tuple(Robot(0.30, "fast") for _ in range(3))
+    slow = tuple(Robot(0.20, "slow") for _ in range(3))
+    return ArenaConfig(circuits=lane_circuits(2, values=(2200.0, 2000.0)), robots=fast + slow)
+
+
+def _dahl2004_homogeneous() -> ArenaConfig:
+    return ArenaConfig(
+        circuits=lane_circuits(2, values=(2200.0, 2000.0)),
+        robots=tuple(Robot(0.25, "medium") for _ in range(6)),
+    )
+
+
+PRESETS: Mapping[str, Any] = {
+    "dahl2004": _dahl2004,
+    "dahl2004_homogeneous": _dahl2004_homogeneous,
+}
+
+
+def preset(name: str) -> ArenaConfig:
+    """The named preset's configuration."""
+    _require(name in PRESETS, "preset", name, f"one of {sorted(PRESETS)}")
+    config: ArenaConfig = PRESETS[name]()
+    return config
+
+
+def make_config(
+    preset_name: str = "dahl2004", config: ArenaConfig | None = None, **overrides: Any
+) -> ArenaConfig:
+    """Build a configuration from a preset (or a given `config`) and field overrides.
+
+    Besides the fields of `ArenaConfig`, two shorthands are accepted: `speeds` (one top speed per
+    robot; classes are labelled fast/slow/medium by comparison with the mean) and `values` (one value
+    per circuit, keeping the geometry). Unknown keys raise a ValueError listing what is allowed.
+    """
+    base = config if config is not None else preset(preset_name)
+    _require(isinstance(base, ArenaConfig), "config", base, "a tavc_env.ArenaConfig or None")
+    fields = {f.name for f in dataclasses.fields(ArenaConfig)}
+    shorthands = {"speeds", "values"}
+    unknown = sorted(set(overrides) - fields - shorthands)
+    if unknown:
+        raise ValueError(
+            f"unknown configuration key(s) {unknown}; allowed: {sorted(fields | shorthands)}"
+        )
+    changes = {k: v for k, v in overrides.items() if k in fields}
+    if "speeds" in overrides:
+        _require(
+            "robots" not in overrides, "speeds", overrides["speeds"], "speeds or robots, not both"
+        )
+        changes["robots"] = robots_from_speeds(overrides["speeds"])
+    if "values" in overrides:
+        circuits = changes.get("circuits", base.circuits)
+        values = overrides["values"]
+        _require(
+            isinstance(values, Sequence) and len(values) == len(circuits),
+            "values",
+            values,
+            f"a sequence of {len(circuits)} circuit values",
+        )
+        changes["circuits"] = tuple(
+            dataclasses.replace(c, value=v) for c, v in zip(circuits, values)
+        )
+    return base.replace(**changes) if changes else base
+
+
+def robots_from_speeds(speeds: Sequence[float]) -> tuple[Robot, ...]:
+    """Robots with the given top speeds, labelled fast / slow / medium relative to the mean speed."""
+    _require(
+        isinstance(speeds, Sequence) and len(speeds) >= 1 and all(_is_number(s) for s in speeds),
+        "speeds",
+        speeds,
+        "a non-empty sequence of speeds in m/s",
+    )
+    mean = sum(speeds) / len(speeds)
+    labels = [
+        "fast" if s > mean + 1e-9 else "slow" if s < mean - 1e-9 else "medium" for s in speeds
+    ]
+    return tuple(Robot(float(s), label) for s, label in zip(speeds, labels))

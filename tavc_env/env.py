@@ -1,0 +1,344 @@
+"""The PettingZoo adapter: wires the arena engine to agents, spaces, rewards and infos.
+
+## tavc_arena_v0
+
+| | |
+|---|---|
+| Agents | `robot_0 .. robot_{n-1}` (`dahl2004`: 0-2 fast at 0.30 m/s, 3-5 slow at 0.20 m/s) |
+| Action space | `Discrete(n_circuits)`: action `i` = serve circuit `i` next |
+| Observation space | `Dict(observation=Box(0, 1, (n_circuits,), float32)`: one-hot of the robot's last circuit, `action_mask=Box(0, 1, (n_circuits,), int8))` |
+| Reward | `w_i / t` when a task on circuit `i` completes (t from decision to delivery, in ms by default), else 0 |
+| Stepping | event-driven: each step runs until some robot completes a task (or `step_cap_s`); or every `decision_interval_s` |
+| State | `state()`: per robot position, heading, velocity, circuit and phase; per station occupancy and line |
+
+Robots that do not have to decide may be given any action (or none): it is ignored. A robot that
+has to decide must be given a valid action, or `step` raises a ValueError and changes nothing.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from pettingzoo import ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec
+from pettingzoo.utils.env import AECEnv
+
+from tavc_env.config import ArenaConfig, make_config
+from tavc_env.simulation import Advance, Simulation
+from tavc_env.tasks import PHASE_NAMES, Phase
+
+ENV_NAME = "tavc_arena_v0"
+RENDER_MODES = ("human", "rgb_array")
+TIME_UNITS = {"ms": 1000.0, "s": 1.0}
+N_PHASES = len(Phase)
+
+
+def _check(condition: bool, name: str, value: object, allowed: str) -> None:
+    if not condition:
+        raise ValueError(f"{name} = {value!r} is invalid; allowed: {allowed}")
+
+
+class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
+    """The prioritized transportation arena as a PettingZoo `ParallelEnv`.
+
+    Args:
+        preset: name of a preset configuration (`dahl2004`, `dahl2004_homogeneous`).
+        config: a full `ArenaConfig` instead of the preset.
+        render_mode: None, "human" or "rgb_array".
+        max_cycles: truncate after this many `step` calls.
+        max_sim_time_s: truncate when simulated time reaches this (default 24 h).
+        decision_interval_s: None for event-driven stepping, else the fixed simulated time per step.
+        reward_time_unit: "ms" (default, the paper's scale) or "s" for t in `w / t`.
+        step_cap_s: event-driven steps return after at most this much simulated time.
+        **overrides: fields of `ArenaConfig` (and the shorthands `speeds`, `values`).
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": ENV_NAME,
+        "render_modes": list(RENDER_MODES),
+        "render_fps": 10,
+        "is_parallelizable": True,
+    }
+
+    def __init__(
+        self,
+        preset: str = "dahl2004",
+        config: ArenaConfig | None = None,
+        render_mode: str | None = None,
+        max_cycles: int = 100_000,
+        max_sim_time_s: float = 24 * 3600.0,
+        decision_interval_s: float | None = None,
+        reward_time_unit: str = "ms",
+        step_cap_s: float = 600.0,
+        **overrides: Any,
+    ) -> None:
+        self.config = make_config(preset, config, **overrides)
+        dt = self.config.dt
+        _check(
+            render_mode is None or render_mode in RENDER_MODES,
+            "render_mode",
+            render_mode,
+            f"None or one of {list(RENDER_MODES)}",
+        )
+        _check(
+            isinstance(max_cycles, int) and not isinstance(max_cycles, bool) and max_cycles >= 1,
+            "max_cycles",
+            max_cycles,
+            "an integer >= 1",
+        )
+        _check(
+            isinstance(max_sim_time_s, (int, float)) and max_sim_time_s >= dt,
+            "max_sim_time_s",
+            max_sim_time_s,
+            f"a time >= one physics step ({dt} s)",
+        )
+        _check(
+            decision_interval_s is None
+            or (isinstance(decision_interval_s, (int, float)) and decision_interval_s >= dt),
+            "decision_interval_s",
+            decision_interval_s,
+            f"None (event-driven) or a time >= one physics step ({dt} s)",
+        )
+        _check(
+            reward_time_unit in TIME_UNITS,
+            "reward_time_unit",
+            reward_time_unit,
+            str(list(TIME_UNITS)),
+        )
+        _check(
+            isinstance(step_cap_s, (int, float)) and step_cap_s >= dt,
+            "step_cap_s",
+            step_cap_s,
+            f"a time >= one physics step ({dt} s)",
+        )
+        self.render_mode = render_mode
+        self.max_cycles = max_cycles
+        self.max_sim_time_s = float(max_sim_time_s)
+        self.decision_interval_s = decision_interval_s
+        self.reward_time_unit = reward_time_unit
+        self.step_cap_s = float(step_cap_s)
+
+        n, m = self.config.n_robots, self.config.n_circuits
+        self.possible_agents = [f"robot_{i}" for i in range(n)]
+        self.agents: list[str] = []
+        self._index = {a: i for i, a in enumerate(self.possible_agents)}
+        self._observation_spaces = {
+            a: spaces.Dict(
+                {
+                    "observation": spaces.Box(0.0, 1.0, (m,), np.float32),
+                    "action_mask": spaces.Box(0, 1, (m,), np.int8),
+                }
+            )
+            for a in self.possible_agents
+        }
+        self._action_spaces = {a: spaces.Discrete(m) for a in self.possible_agents}
+        per_robot = 6 + m + N_PHASES
+        size = n * per_robot + 2 * 2 * m
+        low = np.zeros(size, np.float32)
+        high = np.ones(size, np.float32)
+        for i in range(n):
+            low[i * per_robot + 2 : i * per_robot + 6] = -1.0
+        self.state_space = spaces.Box(low, high, (size,), np.float32)
+
+        self.sim = Simulation(self.config)
+        self._rng: np.random.Generator | None = None
+        self.num_cycles = 0
+        self._last_task_time: list[float | None] = [None] * n
+        self._renderer: Any = None
+
+    # -- PettingZoo API ------------------------------------------------------------------------
+    def observation_space(self, agent: str) -> spaces.Space[Any]:
+        return self._observation_spaces[self._agent_index(agent, "agent")[1]]
+
+    def action_space(self, agent: str) -> spaces.Space[Any]:
+        return self._action_spaces[self._agent_index(agent, "agent")[1]]
+
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, dict[str, Any]]]:
+        if seed is not None or self._rng is None:
+            self._rng, _ = seeding.np_random(seed)
+        self.sim.reset(self._rng)
+        self.agents = self.possible_agents[:]
+        self.num_cycles = 0
+        self._last_task_time = [None] * self.config.n_robots
+        return self._observations(), self._infos(truncated=False)
+
+    def step(
+        self, actions: dict[str, Any]
+    ) -> tuple[
+        dict[str, dict[str, np.ndarray]],
+        dict[str, float],
+        dict[str, bool],
+        dict[str, bool],
+        dict[str, dict[str, Any]],
+    ]:
+        if not self.agents:
+            raise ValueError("step() called on a finished episode; call reset() first")
+        choices = self._validate(actions)
+        for i, circuit in choices:
+            self.sim.choose(i, circuit)
+
+        remaining = self.max_sim_time_s - self.sim.time_s
+        if self.decision_interval_s is None:
+            out = self.sim.advance(min(self.step_cap_s, remaining), stop_on_decision=True)
+        else:
+            out = self.sim.advance(min(self.decision_interval_s, remaining), stop_on_decision=False)
+        rewards = self._rewards(out)
+        self.num_cycles += 1
+        truncated = (
+            self.num_cycles >= self.max_cycles or self.sim.time_s >= self.max_sim_time_s - 1e-9
+        )
+        observations = self._observations()
+        infos = self._infos(truncated)
+        terminations = dict.fromkeys(self.agents, False)
+        truncations = dict.fromkeys(self.agents, truncated)
+        if truncated:
+            self.agents = []
+        return observations, rewards, terminations, truncations, infos
+
+    def state(self) -> np.ndarray:
+        """Global state: per robot [x/W, y/H, cos h, sin h, vx/v, vy/v, circuit one-hot, phase
+        one-hot]; per station [occupied, line length / n_robots]. Velocities are divided by the
+        robot's top speed and clipped to [-1, 1] (contacts can briefly push a robot faster)."""
+        cfg = self.config
+        sim = self.sim
+        n, m = cfg.n_robots, cfg.n_circuits
+        pos = sim.positions()
+        vel = sim.world.velocities() / sim.speeds[:, None]
+        robots = np.zeros((n, 6 + m + N_PHASES), np.float32)
+        robots[:, 0] = np.clip(pos[:, 0] / cfg.width, 0.0, 1.0)
+        robots[:, 1] = np.clip(pos[:, 1] / cfg.height, 0.0, 1.0)
+        robots[:, 2] = np.cos(sim.heading)
+        robots[:, 3] = np.sin(sim.heading)
+        robots[:, 4:6] = np.clip(vel, -1.0, 1.0)
+        robots[np.arange(n), 6 + sim.tasks.circuit] = 1.0
+        robots[np.arange(n), 6 + m + sim.tasks.phase] = 1.0
+        stations = np.array(
+            [[st.occupant >= 0, len(st.line) / n] for st in sim.tasks.stations], np.float32
+        )
+        return np.concatenate([robots.ravel(), stations.ravel()])
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            import gymnasium
+
+            gymnasium.logger.warn(
+                "render() called without a render_mode; pass render_mode='rgb_array' or 'human'"
+            )
+            return None
+        if self._renderer is None:
+            from tavc_env.render import Renderer  # pygame is an optional extra: import lazily
+
+            self._renderer = Renderer(self.config, self.render_mode)
+        frame: np.ndarray | None = self._renderer.draw(self)
+        return frame
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # -- robot failure -------------------------------------------------------------------------
+    def break_down(self, agent: str) -> None:
+        """Robot `agent` breaks down now: it stops, leaves its line or dock, abandons its task and is
+        taken off the floor until repaired. It stays in `agents` with `action_required` False."""
+        self.sim.break_down(self._agent_index(agent, "agent")[0])
+
+    def repair(self, agent: str) -> None:
+        """Repair robot `agent`: it returns to the floor in the next step, which ends with it
+        deciding (a decision epoch, like a scheduled repair)."""
+        i, name = self._agent_index(agent, "agent")
+        _check(self.sim.broken()[i], "agent", name, "a robot that is broken")
+        self.sim.schedule_repair(i)
+
+    # -- helpers -------------------------------------------------------------------------------
+    def _agent_index(self, agent: object, what: str) -> tuple[int, str]:
+        if not isinstance(agent, str) or agent not in self._index:
+            raise ValueError(f"{what} {agent!r} is unknown; allowed: {self.possible_agents}")
+        return self._index[agent], agent
+
+    def _validate(self, actions: object) -> list[tuple[int, int]]:
+        """Check every action before touching the world, so bad input changes nothing."""
+        _check(
+            isinstance(actions, dict), "actions", type(actions).__name__, "a dict agent -> action"
+        )
+        assert isinstance(actions, dict)
+        for agent in actions:
+            self._agent_index(agent, "action key")
+        m = self.config.n_circuits
+        deciding = self.sim.tasks.needs_decision()
+        choices = []
+        for i in np.flatnonzero(deciding):
+            agent = self.possible_agents[i]
+            if agent not in actions or actions[agent] is None:
+                raise ValueError(
+                    f"missing action for {agent}, which must decide; allowed: an integer in [0, {m - 1}]"
+                )
+            a = actions[agent]
+            ok = isinstance(a, (int, np.integer)) and not isinstance(a, bool) and 0 <= int(a) < m
+            if isinstance(a, np.ndarray) and a.shape == () and np.issubdtype(a.dtype, np.integer):
+                ok = 0 <= int(a) < m
+            _check(ok, f"action of {agent}", a, f"an integer circuit index in [0, {m - 1}]")
+            choices.append((int(i), int(a)))
+        return choices
+
+    def _rewards(self, out: Advance) -> dict[str, float]:
+        rewards = dict.fromkeys(self.agents, 0.0)
+        self._last_task_time = [None] * self.config.n_robots
+        unit = TIME_UNITS[self.reward_time_unit]
+        values = self.sim.tasks.values
+        for c in out.completions:
+            agent = self.possible_agents[c.robot]
+            rewards[agent] += float(values[c.circuit] / (c.task_time_s * unit))
+            self._last_task_time[c.robot] = c.task_time_s
+        return rewards
+
+    def _observations(self) -> dict[str, dict[str, np.ndarray]]:
+        tasks = self.sim.tasks
+        m = self.config.n_circuits
+        deciding = tasks.needs_decision()
+        obs: dict[str, dict[str, np.ndarray]] = {}
+        for agent in self.agents:
+            i = self._index[agent]
+            onehot = np.zeros(m, np.float32)
+            onehot[tasks.circuit[i]] = 1.0
+            mask = np.ones(m, np.int8) if deciding[i] else onehot.astype(np.int8)
+            obs[agent] = {"observation": onehot, "action_mask": mask}
+        return obs
+
+    def _infos(self, truncated: bool) -> dict[str, dict[str, Any]]:
+        tasks = self.sim.tasks
+        now = self.sim.time_s
+        deciding = tasks.needs_decision()
+        infos: dict[str, dict[str, Any]] = {}
+        for agent in self.agents:
+            i = self._index[agent]
+            phase = Phase(int(tasks.phase[i]))
+            infos[agent] = {
+                "action_required": bool(deciding[i]) and not truncated,
+                "circuit": int(tasks.circuit[i]),
+                "phase": PHASE_NAMES[phase],
+                "broken": phase == Phase.BROKEN,
+                "task_time_s": self._last_task_time[i],
+                "elapsed_s": float(now - tasks.decision_time[i]),
+                "sim_time_s": float(now),
+                "completed_tasks": int(tasks.completed[i]),
+            }
+        return infos
+
+
+raw_env = TavcArenaEnv
+
+
+def parallel_env(**kwargs: Any) -> TavcArenaEnv:
+    """The arena as a PettingZoo ParallelEnv (see `TavcArenaEnv` for the arguments)."""
+    return TavcArenaEnv(**kwargs)
+
+
+def env(**kwargs: Any) -> AECEnv[str, dict[str, np.ndarray], int | None]:
+    """The arena as a PettingZoo AEC env, converted from the parallel env by PettingZoo."""
+    return parallel_to_aec(parallel_env(**kwargs))

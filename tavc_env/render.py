@@ -1,0 +1,116 @@
+"""Drawing the arena with pygame: a leaf module, imported only when rendering is asked for.
+
+Robots are coloured by speed class (fast red, slow blue, others grey), broken robots are drawn as
+hollow circles, each moving robot has a line to its current target, stations are squares (sources)
+and diamonds (sinks) in their circuit's colour, and a readout shows the simulated time, the number
+of robots per circuit and the delivered value.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from tavc_env.config import ArenaConfig
+
+if TYPE_CHECKING:
+    from tavc_env.env import TavcArenaEnv
+
+try:
+    import pygame
+except ImportError as error:  # pragma: no cover - depends on the installation
+    raise ImportError(
+        "rendering needs pygame, an optional extra: pip install 'tavc-env[render]'"
+    ) from error
+
+PIXELS_PER_M = 60
+MARGIN_PX = 10
+PANEL_PX = 60
+CLASS_COLOURS = {"fast": (220, 60, 50), "slow": (50, 90, 220)}
+OTHER_COLOUR = (120, 120, 120)
+CIRCUIT_COLOURS = [(230, 160, 20), (40, 170, 90), (150, 70, 190), (20, 160, 200), (200, 80, 140)]
+
+
+class Renderer:
+    """Draws one env's arena to a surface; shows it in a window in "human" mode."""
+
+    def __init__(self, config: ArenaConfig, mode: str) -> None:
+        self.config = config
+        self.mode = mode
+        if mode != "human":
+            os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+        pygame.init()
+        self.size = (
+            int(config.width * PIXELS_PER_M) + 2 * MARGIN_PX,
+            int(config.height * PIXELS_PER_M) + 2 * MARGIN_PX + PANEL_PX,
+        )
+        self.surface = pygame.Surface(self.size)
+        self.window: Any = None
+        self.font = pygame.font.Font(None, 22)
+
+    def _px(self, p: np.ndarray | tuple[float, float]) -> tuple[int, int]:
+        x = MARGIN_PX + p[0] * PIXELS_PER_M
+        y = MARGIN_PX + (self.config.height - p[1]) * PIXELS_PER_M
+        return round(x), round(y)
+
+    def draw(self, env: TavcArenaEnv) -> np.ndarray | None:
+        cfg = self.config
+        sim = env.sim
+        surf = self.surface
+        surf.fill((250, 250, 245))
+        top_left = self._px((0.0, cfg.height))
+        pygame.draw.rect(
+            surf,
+            (40, 40, 40),
+            (*top_left, int(cfg.width * PIXELS_PER_M), int(cfg.height * PIXELS_PER_M)),
+            3,
+        )
+        half = int(0.18 * PIXELS_PER_M)
+        for c, circuit in enumerate(cfg.circuits):
+            colour = CIRCUIT_COLOURS[c % len(CIRCUIT_COLOURS)]
+            sx, sy = self._px(circuit.source)
+            pygame.draw.rect(surf, colour, (sx - half, sy - half, 2 * half, 2 * half))
+            kx, ky = self._px(circuit.sink)
+            pygame.draw.polygon(
+                surf, colour, [(kx, ky - half), (kx + half, ky), (kx, ky + half), (kx - half, ky)]
+            )
+        pos = sim.positions()
+        radius = int(cfg.robot_radius * PIXELS_PER_M)
+        moving = sim.tasks.moving
+        broken = sim.broken()
+        for i, robot in enumerate(cfg.robots):
+            centre = self._px(pos[i])
+            colour = CLASS_COLOURS.get(robot.speed_class, OTHER_COLOUR)
+            if moving[i]:
+                pygame.draw.line(surf, (180, 180, 180), centre, self._px(sim.tasks.target[i]), 1)
+            if broken[i]:
+                pygame.draw.circle(surf, colour, centre, radius, 2)
+                continue
+            pygame.draw.circle(surf, colour, centre, radius)
+            tip = pos[i] + cfg.robot_radius * np.array(
+                [np.cos(sim.heading[i]), np.sin(sim.heading[i])]
+            )
+            pygame.draw.line(surf, (255, 255, 255), centre, self._px(tip), 2)
+            ring = CIRCUIT_COLOURS[int(sim.tasks.circuit[i]) % len(CIRCUIT_COLOURS)]
+            pygame.draw.circle(surf, ring, centre, radius, 3)
+        counts = np.bincount(sim.tasks.circuit[~broken], minlength=cfg.n_circuits)
+        hours = sim.time_s / 3600.0
+        text = f"t = {hours:6.2f} h   robots per circuit: {counts.tolist()}   tasks: {int(sim.tasks.completed.sum())}"
+        label = self.font.render(text, True, (20, 20, 20))
+        surf.blit(label, (MARGIN_PX, self.size[1] - PANEL_PX + 15))
+        if self.mode == "human":
+            if self.window is None:
+                pygame.display.init()
+                self.window = pygame.display.set_mode(self.size)
+            self.window.blit(surf, (0, 0))
+            pygame.event.pump()
+            pygame.display.flip()
+            return None
+        return np.transpose(pygame.surfarray.array3d(surf), (1, 0, 2)).copy()
+
+    def close(self) -> None:
+        if self.window is not None:
+            pygame.display.quit()
+            self.window = None

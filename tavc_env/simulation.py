@@ -1,0 +1,181 @@
+"""The arena engine: physics world + navigation + task cycle, advanced tick by tick.
+
+This is the one engine every adapter (the PettingZoo env, benchmarks, renderers) drives. It knows
+circuits, tasks and time; it knows nothing of observations, rewards or agents' names.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tavc_env.config import ArenaConfig
+from tavc_env.navigation import Navigator
+from tavc_env.tasks import Completion, Mode, Phase, TaskCycle
+from tavc_env.world import World
+
+
+@dataclass
+class Advance:
+    """What happened during one call to `Simulation.advance`."""
+
+    completions: list[Completion] = field(default_factory=list)
+    repaired: list[int] = field(default_factory=list)
+    broken: list[int] = field(default_factory=list)
+    duration_s: float = 0.0
+
+
+class Simulation:
+    """One arena in motion. Call `reset(rng)` before use; `rng` drives every random draw."""
+
+    def __init__(self, config: ArenaConfig) -> None:
+        self.config = config
+        self.world = World(config)
+        self.nav = Navigator(config)
+        self.tasks = TaskCycle(config)
+        n = config.n_robots
+        self.speeds = np.array([r.speed for r in config.robots], dtype=float)
+        self.speed_factor = np.ones(n)
+        self.heading = np.zeros(n)
+        self.time_s = 0.0
+        self.ticks = 0
+        self.rng = np.random.default_rng(0)
+        # (time, kind 0 = break / 1 = repair, robot, repair delay after a break or -1 for none)
+        self._schedule: list[tuple[float, int, int, float]] = []
+
+    # -- life cycle ----------------------------------------------------------------------------
+    def reset(self, rng: np.random.Generator) -> None:
+        """Rebuild the world and put robots at the sinks, spread evenly over circuits in an order
+        drawn from `rng` (never by speed). Everyone starts deciding."""
+        cfg = self.config
+        self.rng = rng
+        self.world = World(cfg)
+        self.tasks = TaskCycle(cfg)
+        self.time_s = 0.0
+        self.ticks = 0
+        n, m = cfg.n_robots, cfg.n_circuits
+        order = rng.permutation(n)
+        positions = np.zeros((n, 2))
+        per_circuit = [0] * m
+        for rank, i in enumerate(order):
+            c = rank % m
+            k = per_circuit[c]
+            per_circuit[c] += 1
+            sink = self.tasks.stations[self.tasks.sink_of(c)]
+            positions[i] = sink.dock if k == 0 else sink.slots[k - 1]
+            self.tasks.start(int(i), c)
+        self.world.place(positions)
+        self.heading = rng.uniform(-math.pi, math.pi, size=n)
+        self.speed_factor = np.ones(n)
+        self._schedule = sorted(
+            (b.at_s, 0, b.robot, -1.0 if b.repair_after_s is None else b.repair_after_s)
+            for b in cfg.breakdowns
+        )
+
+    # -- decisions and failures ----------------------------------------------------------------
+    def choose(self, robot: int, circuit: int) -> None:
+        """A deciding robot starts a task on `circuit`."""
+        self.tasks.choose(robot, circuit, self.time_s)
+        self._new_leg(robot)
+
+    def _new_leg(self, robot: int) -> None:
+        noise = self.config.speed_noise
+        if noise > 0:
+            self.speed_factor[robot] = float(
+                np.clip(1.0 + noise * self.rng.standard_normal(), 0.5, 1.5)
+            )
+
+    def break_down(self, robot: int) -> None:
+        if self.tasks.phase[robot] == Phase.BROKEN:
+            return
+        self.tasks.break_down(robot)
+        self.world.remove_robot(robot)
+
+    def schedule_repair(self, robot: int) -> None:
+        """Repair `robot` at the end of the next tick, so the repair is a decision epoch like any
+        scheduled one."""
+        self._schedule.append((self.time_s, 1, robot, -1.0))
+        self._schedule.sort()
+
+    def repair(self, robot: int) -> None:
+        if self.tasks.phase[robot] != Phase.BROKEN:
+            return
+        self.world.restore_robot(robot, self.rng)
+        self.tasks.repair(robot)
+
+    # -- time ----------------------------------------------------------------------------------
+    def advance(self, max_duration_s: float, stop_on_decision: bool = True) -> Advance:
+        """Run ticks until a robot needs a decision (if `stop_on_decision`) or the duration ends.
+
+        Returns at the end of the tick in which the first decision epoch happened, with every
+        completion, breakdown and repair of that call.
+        """
+        out = Advance()
+        start = self.time_s
+        dt = self.config.dt
+        n_ticks = max(1, round(max_duration_s / dt))
+        for _ in range(n_ticks):
+            self._tick(out)
+            if stop_on_decision and (out.completions or out.repaired):
+                break
+        out.duration_s = self.time_s - start
+        return out
+
+    def _tick(self, out: Advance) -> None:
+        dt = self.config.dt
+        tasks = self.tasks
+        pos = self.world.positions()
+        cmd = self.nav.command(
+            pos,
+            self.heading,
+            tasks.target,
+            tasks.moving,
+            self.speeds * self.speed_factor,
+            self.world.in_space,
+        )
+        self.heading = cmd.heading
+        self.world.set_velocities(cmd.velocity)
+        self.world.step(dt)
+        self.ticks += 1
+        self.time_s = self.ticks * dt
+        now = self.time_s
+
+        done = np.flatnonzero(tasks.service_until <= now + 1e-9)
+        for i in done:
+            completion = tasks.finish_service(int(i), now)
+            if completion is None:
+                self._new_leg(int(i))
+            else:
+                out.completions.append(completion)
+        if np.any(tasks.trigger > 0):
+            pos = self.world.positions()
+            gap = np.hypot(*(tasks.target - pos).T)
+            for i in np.flatnonzero((tasks.trigger > 0) & (gap <= tasks.trigger)):
+                tasks.arrive(int(i), now)
+        self._run_schedule(now, out)
+
+    def _run_schedule(self, now: float, out: Advance) -> None:
+        while self._schedule and self._schedule[0][0] <= now + 1e-9:
+            _, kind, robot, after = self._schedule.pop(0)
+            if kind == 0:
+                if self.tasks.phase[robot] != Phase.BROKEN:
+                    self.break_down(robot)
+                    out.broken.append(robot)
+                    if after > 0:
+                        self._schedule.append((now + after, 1, robot, -1.0))
+                        self._schedule.sort()
+            elif self.tasks.phase[robot] == Phase.BROKEN:
+                self.repair(robot)
+                out.repaired.append(robot)
+
+    # -- views ---------------------------------------------------------------------------------
+    def positions(self) -> np.ndarray:
+        return self.world.positions()
+
+    def broken(self) -> np.ndarray:
+        return self.tasks.phase == Phase.BROKEN
+
+    def idle(self) -> np.ndarray:
+        return self.tasks.mode == Mode.IDLE

@@ -1,0 +1,254 @@
+"""The task cycle: stations, waiting lines, legs, task timing. No physics and no learning here.
+
+A task starts when a robot standing at a sink chooses a circuit: it drives to that circuit's source,
+waits its turn, is loaded, drives to the circuit's sink, waits its turn, is unloaded, and the task
+is complete (the robot's next decision epoch). The task time runs from the decision to the end of
+unloading.
+
+A station (one source and one sink per circuit) serves one robot at a time. A robot that comes
+within `join_radius_m` of a station's dock joins its line: if the station is free and nobody waits,
+it drives onto the dock, otherwise it drives to the next free waiting slot beside the dock and waits
+there. When a robot's service ends it leaves, and the robot at the head of the line drives onto the
+dock. The line is first come first served and stands in space: waiting robots are obstacles.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tavc_env.config import ArenaConfig
+
+
+class Phase(enum.IntEnum):
+    """What a robot is doing, as reported in infos."""
+
+    DECIDING = 0
+    TO_SOURCE = 1
+    TO_SINK = 2
+    BROKEN = 3
+
+
+PHASE_NAMES = {
+    Phase.DECIDING: "deciding",
+    Phase.TO_SOURCE: "to_source",
+    Phase.TO_SINK: "to_sink",
+    Phase.BROKEN: "broken",
+}
+
+
+class Mode(enum.IntEnum):
+    """How a robot moves within its phase."""
+
+    IDLE = 0  # deciding or broken: stands still
+    TRAVEL = 1  # driving toward a station
+    QUEUED = 2  # in a station's line, at (or driving to) its waiting slot
+    DOCKING = 3  # the station is its: driving onto the dock
+    SERVICE = 4  # standing on the dock while loaded / unloaded
+
+
+NEVER = -1.0
+_FIRST_MOVING = int(Mode.TRAVEL)
+_LAST_MOVING = int(Mode.DOCKING)
+
+
+@dataclass
+class Station:
+    """A dock serving one robot at a time, with its line of waiting slots."""
+
+    dock: np.ndarray
+    slots: np.ndarray  # (k, 2) waiting positions, nearest the dock first
+    service_s: float
+    occupant: int = -1
+    line: list[int] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Completion:
+    """A finished task: robot `robot` delivered on `circuit` after `task_time_s` seconds."""
+
+    robot: int
+    circuit: int
+    task_time_s: float
+    time_s: float
+
+
+def waiting_slots(
+    config: ArenaConfig, dock: tuple[float, float], direction: tuple[float, float]
+) -> np.ndarray:
+    """Waiting slots in a line from the dock along `direction`, folding into a new row (one spacing
+    further from the nearest wall across the line) where the line would leave the arena."""
+    r = config.robot_radius
+    margin = r + 0.1
+    lo = np.array([margin, margin])
+    hi = np.array([config.width - margin, config.height - margin])
+    base = np.array(dock, dtype=float)
+    along = np.array(direction, dtype=float)
+    across = np.array([-along[1], along[0]])
+    # The new row grows toward the arena's interior.
+    centre = np.array([config.width / 2, config.height / 2])
+    if np.dot(centre - base, across) < 0:
+        across = -across
+    slots: list[np.ndarray] = []
+    row, k = 0, 0
+    while len(slots) < config.n_robots:
+        p = base + along * (config.queue_offset_m + k * config.queue_spacing_m)
+        p = p + across * row * config.queue_spacing_m
+        if np.all(p >= lo) and np.all(p <= hi):
+            slots.append(p)
+            k += 1
+        elif k == 0:
+            # Even the first slot of this row is outside: the arena is too small for the line.
+            slots.append(np.clip(p, lo, hi))
+            k += 1
+        else:
+            row, k = row + 1, 0
+        if row > 50:
+            break
+    while len(slots) < config.n_robots:
+        slots.append(slots[-1])
+    return np.array(slots)
+
+
+class TaskCycle:
+    """Per-robot task state and the stations; advanced by the simulation at events only."""
+
+    def __init__(self, config: ArenaConfig) -> None:
+        self.config = config
+        n = config.n_robots
+        self.stations: list[Station] = []
+        for c in config.circuits:
+            for point, service in (
+                (c.source, config.source_service_s),
+                (c.sink, config.sink_service_s),
+            ):
+                self.stations.append(
+                    Station(
+                        dock=np.array(point, dtype=float),
+                        slots=waiting_slots(config, point, c.queue_direction),
+                        service_s=service,
+                    )
+                )
+        self.values = np.array([c.value for c in config.circuits], dtype=float)
+        self.phase = np.zeros(n, dtype=np.int64)
+        self.mode = np.zeros(n, dtype=np.int64)
+        self.circuit = np.zeros(n, dtype=np.int64)
+        self.station = np.full(n, -1, dtype=np.int64)
+        self.decision_time = np.zeros(n)
+        self.service_until = np.full(n, math.inf)
+        self.trigger = np.full(n, NEVER)  # distance to target that fires an event; NEVER: none
+        self.target = np.zeros((n, 2))
+        self.completed = np.zeros(n, dtype=np.int64)
+
+    # -- queries -------------------------------------------------------------------------------
+    @property
+    def moving(self) -> np.ndarray:
+        return (self.mode >= _FIRST_MOVING) & (self.mode <= _LAST_MOVING)
+
+    def needs_decision(self) -> np.ndarray:
+        return self.phase == Phase.DECIDING
+
+    def source_of(self, circuit: int) -> int:
+        return 2 * circuit
+
+    def sink_of(self, circuit: int) -> int:
+        return 2 * circuit + 1
+
+    # -- transitions ---------------------------------------------------------------------------
+    def start(self, i: int, circuit: int) -> None:
+        """Robot i begins, standing at circuit's sink, waiting for its first decision."""
+        self.phase[i] = Phase.DECIDING
+        self.mode[i] = Mode.IDLE
+        self.circuit[i] = circuit
+        self.station[i] = -1
+        self.trigger[i] = NEVER
+        self.service_until[i] = math.inf
+
+    def choose(self, i: int, circuit: int, now: float) -> None:
+        """Robot i (deciding) starts a task on `circuit`."""
+        self.phase[i] = Phase.TO_SOURCE
+        self.circuit[i] = circuit
+        self.decision_time[i] = now
+        self._travel_to(i, self.source_of(circuit))
+
+    def _travel_to(self, i: int, station: int) -> None:
+        self.station[i] = station
+        self.mode[i] = Mode.TRAVEL
+        self.target[i] = self.stations[station].dock
+        self.trigger[i] = self.config.join_radius_m
+
+    def arrive(self, i: int, now: float) -> None:
+        """Robot i reached the distance that fires its current trigger."""
+        if self.mode[i] == Mode.TRAVEL:
+            self._join(i)
+        elif self.mode[i] == Mode.DOCKING:
+            st = self.stations[self.station[i]]
+            self.mode[i] = Mode.SERVICE
+            self.trigger[i] = NEVER
+            self.service_until[i] = now + st.service_s
+
+    def _join(self, i: int) -> None:
+        st = self.stations[self.station[i]]
+        if st.occupant < 0 and not st.line:
+            self._dock(i, st)
+        else:
+            st.line.append(i)
+            self.mode[i] = Mode.QUEUED
+            self.target[i] = st.slots[len(st.line) - 1]
+            self.trigger[i] = NEVER
+
+    def _dock(self, i: int, st: Station) -> None:
+        st.occupant = i
+        self.mode[i] = Mode.DOCKING
+        self.target[i] = st.dock
+        self.trigger[i] = self.config.dock_tolerance_m
+
+    def _release(self, st: Station) -> None:
+        st.occupant = -1
+        if st.line:
+            head = st.line.pop(0)
+            self._dock(head, st)
+            for k, j in enumerate(st.line):
+                self.target[j] = st.slots[k]
+
+    def finish_service(self, i: int, now: float) -> Completion | None:
+        """Robot i's loading or unloading ended; returns the completed task after unloading."""
+        st = self.stations[self.station[i]]
+        self.service_until[i] = math.inf
+        self._release(st)
+        c = int(self.circuit[i])
+        if self.phase[i] == Phase.TO_SOURCE:
+            self.phase[i] = Phase.TO_SINK
+            self._travel_to(i, self.sink_of(c))
+            return None
+        self.phase[i] = Phase.DECIDING
+        self.mode[i] = Mode.IDLE
+        self.station[i] = -1
+        self.trigger[i] = NEVER
+        self.completed[i] += 1
+        return Completion(robot=i, circuit=c, task_time_s=now - self.decision_time[i], time_s=now)
+
+    def break_down(self, i: int) -> None:
+        """Robot i stops serving: it leaves any line or dock; its task is abandoned."""
+        s = self.station[i]
+        if s >= 0:
+            st = self.stations[s]
+            if st.occupant == i:
+                self._release(st)
+            elif i in st.line:
+                st.line.remove(i)
+                for k, j in enumerate(st.line):
+                    self.target[j] = st.slots[k]
+        self.phase[i] = Phase.BROKEN
+        self.mode[i] = Mode.IDLE
+        self.station[i] = -1
+        self.trigger[i] = NEVER
+        self.service_until[i] = math.inf
+
+    def repair(self, i: int) -> None:
+        """Robot i is back: it must decide where to go next (its last circuit stays its state)."""
+        self.phase[i] = Phase.DECIDING
+        self.mode[i] = Mode.IDLE
