@@ -1,0 +1,213 @@
+"""The trial runner: one env, one policy per robot, a convergence period and a measured period.
+
+Shared by the benchmarks, the tests and researchers' own agents. It records what the analysis
+needs and nothing the policies could see that they should not: the allocation timeline (every
+change of a robot's current circuit, time-stamped), every delivery, and periodic snapshots of the
+learners' Q-tables. The result is a plain, JSON-serialisable dataclass; the same seed gives the same
+result.
+
+Seeding: one `numpy.random.SeedSequence(seed)` is split into one stream for the env and one per
+policy, so adding a robot does not change the others' random draws.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import tavc_env
+from agents.policy import Policy
+
+PolicyFactory = Callable[[str], Policy]
+
+
+@dataclass
+class TrialResult:
+    """Everything one trial recorded (times in simulated seconds)."""
+
+    seed: int
+    label: str
+    env_kwargs: dict[str, Any]
+    agents: list[str]
+    speed_classes: list[str]
+    speeds: list[float]
+    values: list[float]
+    convergence_s: float
+    measured_s: float
+    end_s: float
+    initial_circuits: list[int]
+    changes: list[tuple[float, int, int]] = field(default_factory=list)
+    delivery_time_s: list[float] = field(default_factory=list)
+    delivery_robot: list[int] = field(default_factory=list)
+    delivery_circuit: list[int] = field(default_factory=list)
+    delivery_task_time_s: list[float] = field(default_factory=list)
+    q_snapshots: list[dict[str, Any]] = field(default_factory=list)
+    learner_stats: dict[str, dict[str, Any]] = field(default_factory=dict)
+    capped_steps: int = 0
+    steps: int = 0
+    wall_s: float = 0.0
+
+    @property
+    def measured_window(self) -> tuple[float, float]:
+        return self.convergence_s, self.convergence_s + self.measured_s
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> TrialResult:
+        d = dict(data)
+        d["changes"] = [tuple(c) for c in d.get("changes", [])]
+        return cls(**d)
+
+    def save(self, path: str | Path) -> None:
+        """Write atomically (a partial file never replaces a finished one)."""
+        path = Path(path)
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        tmp.write_text(json.dumps(self.to_dict()))
+        tmp.replace(path)
+
+    @classmethod
+    def load(cls, path: str | Path) -> TrialResult:
+        return cls.from_dict(json.loads(Path(path).read_text()))
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (str, int, float, bool)) or value is None:
+        return value
+    return repr(value)
+
+
+def run_trial(
+    policies: Mapping[str, Policy] | PolicyFactory,
+    *,
+    seed: int,
+    convergence_s: float = 15 * 3600.0,
+    measured_s: float = 5 * 3600.0,
+    snapshot_every_s: float = 3600.0,
+    label: str = "",
+    progress: Callable[[float], None] | None = None,
+    **env_kwargs: Any,
+) -> TrialResult:
+    """Run one trial and return what it recorded.
+
+    `policies` maps every agent name to its policy, or is a factory called with each agent name.
+    `env_kwargs` go to `tavc_env.parallel_env` (e.g. `preset="dahl2004"`, config overrides);
+    `max_sim_time_s` is set from the two periods. `progress`, if given, is called with the
+    simulated time after each step.
+    """
+    for name, value in (("convergence_s", convergence_s), ("measured_s", measured_s)):
+        if not (isinstance(value, (int, float)) and value >= 0):
+            raise ValueError(f"{name} = {value!r} is invalid; allowed: a duration >= 0 s")
+    if measured_s + convergence_s <= 0:
+        raise ValueError("convergence_s + measured_s is 0; allowed: a positive total duration")
+    total = float(convergence_s + measured_s)
+    env = tavc_env.parallel_env(max_sim_time_s=total, max_cycles=10**9, **env_kwargs)
+    agents = list(env.possible_agents)
+    if callable(policies) and not isinstance(policies, Mapping):
+        table: dict[str, Policy] = {a: policies(a) for a in agents}
+    else:
+        missing = sorted(set(agents) - set(policies))
+        if missing:
+            raise ValueError(
+                f"policies missing for {missing}; allowed: one policy per agent {agents}"
+            )
+        table = dict(policies)
+
+    env_seq, *policy_seqs = np.random.SeedSequence(seed).spawn(len(agents) + 1)
+    n_actions = env.config.n_circuits
+    for agent, seq in zip(agents, policy_seqs):
+        table[agent].reset(np.random.default_rng(seq), n_actions)
+
+    cfg = env.config
+    result = TrialResult(
+        seed=seed,
+        label=label,
+        env_kwargs=_jsonable(env_kwargs),
+        agents=agents,
+        speed_classes=[r.speed_class for r in cfg.robots],
+        speeds=[r.speed for r in cfg.robots],
+        values=[c.value for c in cfg.circuits],
+        convergence_s=float(convergence_s),
+        measured_s=float(measured_s),
+        end_s=0.0,
+        initial_circuits=[],
+    )
+    started = time.perf_counter()
+    obs, infos = env.reset(seed=int(env_seq.generate_state(1)[0]))
+    result.initial_circuits = [infos[a]["circuit"] for a in agents]
+    current = list(result.initial_circuits)
+    pending: dict[str, tuple[np.ndarray, int]] = {}
+    rewards: dict[str, float] = {}
+    next_snapshot = 0.0
+    while env.agents:
+        now = infos[agents[0]]["sim_time_s"]
+        if now >= next_snapshot:
+            _snapshot(result, table, now)
+            next_snapshot += snapshot_every_s
+        actions: dict[str, int] = {}
+        for i, agent in enumerate(agents):
+            info = infos[agent]
+            if not info["action_required"]:
+                continue
+            # A repaired robot decides without having completed its abandoned task: no update.
+            prev = pending.pop(agent, None)
+            if prev is not None and info["task_time_s"] is not None:
+                table[agent].update(
+                    prev[0], prev[1], rewards[agent], obs[agent]["observation"], info
+                )
+            action = int(table[agent].act(obs[agent]["observation"], obs[agent]["action_mask"]))
+            actions[agent] = action
+            pending[agent] = (obs[agent]["observation"], action)
+            if action != current[i]:
+                current[i] = action
+                result.changes.append((now, i, action))
+        obs, rewards, _, _, infos = env.step(actions)
+        result.steps += 1
+        if not any(info["action_required"] for info in infos.values()) and env.agents:
+            result.capped_steps += 1
+        for i, agent in enumerate(agents):
+            t = infos[agent]["task_time_s"]
+            if t is not None:
+                result.delivery_time_s.append(infos[agent]["sim_time_s"])
+                result.delivery_robot.append(i)
+                result.delivery_circuit.append(infos[agent]["circuit"])
+                result.delivery_task_time_s.append(t)
+        if progress is not None:
+            progress(env.sim.time_s)
+    result.end_s = env.sim.time_s
+    _snapshot(result, table, result.end_s)
+    for agent in agents:
+        stats = _learner_stats(table[agent])
+        if stats:
+            result.learner_stats[agent] = stats
+    result.wall_s = time.perf_counter() - started
+    return result
+
+
+def _snapshot(result: TrialResult, table: Mapping[str, Policy], now: float) -> None:
+    tables = {a: p.q_table.tolist() for a, p in table.items() if hasattr(p, "q_table")}
+    if tables:
+        result.q_snapshots.append({"time_s": now, "q": tables})
+
+
+def _learner_stats(policy: Policy) -> dict[str, Any]:
+    if not hasattr(policy, "updates"):
+        return {}
+    updates = np.asarray(policy.updates)
+    return {
+        "updates": updates.tolist(),
+        "never_updated": int((updates == 0).sum()),
+        "choices": int(getattr(policy, "choices", 0)),
+        "non_greedy_choices": int(getattr(policy, "non_greedy_choices", 0)),
+    }
