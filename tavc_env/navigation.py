@@ -1,8 +1,7 @@
 """The robots' low-level controller: drive to a target point, avoid walls and other robots.
 
-Behaviour-based and reactive, like the paper's Pioneers in an open room. Computed for all robots at
-once with numpy (no per-robot Python in the physics loop). Each robot is a unicycle: it turns at a
-bounded rate and drives forward along its heading. Three behaviours are blended:
+Behaviour-based and reactive, like the paper's Pioneers in an open room. Each robot is a unicycle:
+it turns at a bounded rate and drives forward along its heading. Three behaviours are blended:
 
 * *go to target*: head for the target point, slowing down over the last metre;
 * *avoid*: a robot ahead in the way (closer than the target, inside the corridor the robot sweeps)
@@ -13,16 +12,36 @@ bounded rate and drives forward along its heading. Three behaviours are blended:
 
 Speed is capped by the free distance along the current heading (a robot brakes behind a robot it
 cannot yet pass) and by the heading error (it turns on the spot when the target is behind it).
+
+The per-tick loop over robot pairs is one function, compiled by numba when it is installed (the
+physics loop calls it every 0.1 s of simulated time, so interpreted Python would dominate the run
+time); without numba the same function runs as plain Python.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from tavc_env.config import ArenaConfig
+
+try:
+    from numba import njit as _njit
+
+    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
+        return _njit(cache=True, fastmath=False, nogil=True)(fn)
+
+    COMPILED = True
+except ImportError:  # pragma: no cover - numba is a dependency; this keeps a broken install usable
+
+    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
+        return fn
+
+    COMPILED = False
 
 STEER_GAIN = 1.5  # sideways deflection per unit of obstacle weight
 CORRIDOR_MARGIN_M = 0.15  # extra width beyond two radii that counts as "in the way"
@@ -34,19 +53,128 @@ ARRIVED_M = 0.03  # closer than this to its target a robot holds still
 WALL_RANGE_M = 0.25
 
 
-def _clip(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    # np.clip's Python-level dispatch costs more than the arithmetic on arrays this small.
-    return np.minimum(np.maximum(x, lo), hi)
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+_clip_c = _compile(_clip)
+
+
+def _steer_all(
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    turn_step: float,
+    width: float,
+    height: float,
+    out_velocity: np.ndarray,
+    out_heading: np.ndarray,
+) -> None:
+    n = pos.shape[0]
+    corridor = 2.0 * radius + CORRIDOR_MARGIN_M
+    near = 2.0 * radius + KEEP_APART_MARGIN_M
+    contact = 2.0 * radius
+    wall_lo = radius + WALL_RANGE_M
+    for i in range(n):
+        px = pos[i, 0]
+        py = pos[i, 1]
+        gx = target[i, 0] - px
+        gy = target[i, 1] - py
+        gdist = math.sqrt(gx * gx + gy * gy)
+        out_heading[i] = heading[i]
+        out_velocity[i, 0] = 0.0
+        out_velocity[i, 1] = 0.0
+        if not (moving[i] and present[i] and gdist > ARRIVED_M):
+            continue
+        ux = gx / gdist
+        uy = gy / gdist
+        steer = 0.0
+        push_x = 0.0
+        push_y = 0.0
+        for j in range(n):
+            if j == i or not present[j]:
+                continue
+            dx = pos[j, 0] - px
+            dy = pos[j, 1] - py
+            dist = math.sqrt(dx * dx + dy * dy)
+            ahead = dx * ux + dy * uy
+            lateral = ux * dy - uy * dx  # > 0: the other robot is on the left
+            if ahead > 0.0 and abs(lateral) < corridor and dist < sensing and dist < gdist:
+                w = _clip_c((sensing - dist) / (sensing - contact), 0.0, 1.0)
+                w *= 1.0 - abs(lateral) / corridor
+                steer += -w if lateral < 0.0 else w
+            if dist < near:
+                overlap = min((near - dist) / KEEP_APART_MARGIN_M, 2.0)
+                inv = overlap / max(dist, 1e-9)
+                push_x -= inv * dx
+                push_y -= inv * dy
+        steer = _clip_c(steer, -2.0, 2.0)
+        # +steer turns toward the right-hand normal (uy, -ux) of the goal direction.
+        want_x = ux + STEER_GAIN * steer * uy + push_x
+        want_y = uy - STEER_GAIN * steer * ux + push_y
+        want_x += _clip_c((wall_lo - px) / WALL_RANGE_M, 0.0, 1.0)
+        want_x -= _clip_c((px - (width - wall_lo)) / WALL_RANGE_M, 0.0, 1.0)
+        want_y += _clip_c((wall_lo - py) / WALL_RANGE_M, 0.0, 1.0)
+        want_y -= _clip_c((py - (height - wall_lo)) / WALL_RANGE_M, 0.0, 1.0)
+
+        phi = math.atan2(want_y, want_x)
+        err = (phi - heading[i] + math.pi) % (2.0 * math.pi) - math.pi
+        turn = _clip_c(err, -turn_step, turn_step)
+        h = (heading[i] + turn + math.pi) % (2.0 * math.pi) - math.pi
+        c = max(math.cos(err - turn), 0.0)
+        speed = min(top_speed[i] * c * c, gdist / APPROACH_TIME_S)
+
+        hx = math.cos(h)
+        hy = math.sin(h)
+        free = math.inf
+        for j in range(n):
+            if j == i or not present[j]:
+                continue
+            dx = pos[j, 0] - px
+            dy = pos[j, 1] - py
+            along = dx * hx + dy * hy
+            across = abs(hx * dy - hy * dx)
+            if along > 0.0 and across < contact:
+                free = min(free, along - math.sqrt(contact * contact - across * across))
+        speed *= _clip_c((free - BRAKE_GAP_M) / BRAKE_DISTANCE_M, 0.0, 1.0)
+        out_heading[i] = h
+        out_velocity[i, 0] = speed * hx
+        out_velocity[i, 1] = speed * hy
+
+
+steer_all = _compile(_steer_all)
+
+
+def _arrivals(pos: np.ndarray, target: np.ndarray, trigger: np.ndarray, out: np.ndarray) -> int:
+    """Write into `out` the robots within their trigger distance of their target; return how many.
+    A trigger <= 0 never fires."""
+    k = 0
+    for i in range(pos.shape[0]):
+        if trigger[i] > 0.0:
+            dx = target[i, 0] - pos[i, 0]
+            dy = target[i, 1] - pos[i, 1]
+            if dx * dx + dy * dy <= trigger[i] * trigger[i]:
+                out[k] = i
+                k += 1
+    return k
+
+
+arrivals = _compile(_arrivals)
 
 
 @dataclass(frozen=True)
 class Command:
     velocity: np.ndarray  # (n, 2) m/s
-    heading: np.ndarray  # (n,) rad
+    heading: np.ndarray  # (n,) rad in [-pi, pi)
 
 
 class Navigator:
-    """Vectorised controller for all robots of one arena."""
+    """The controller for all robots of one arena."""
 
     def __init__(self, config: ArenaConfig) -> None:
         self.radius = config.robot_radius
@@ -54,8 +182,6 @@ class Navigator:
         self.turn_step = config.max_turn_rate * config.dt
         self.width = config.width
         self.height = config.height
-        n = config.n_robots
-        self._not_self = ~np.eye(n, dtype=bool)
 
     def command(
         self,
@@ -71,68 +197,22 @@ class Navigator:
         `moving`: robots that drive toward their target this tick (others stand still but are still
         obstacles); `present`: robots physically on the floor; `top_speed`: each robot's speed now.
         """
-        r = self.radius
-        to_goal = target - pos
-        gdist = np.hypot(to_goal[:, 0], to_goal[:, 1])
-        u = to_goal / np.maximum(gdist, 1e-9)[:, None]
-
-        d = pos[None, :, :] - pos[:, None, :]  # d[i, j] = p_j - p_i
-        dx, dy = d[..., 0], d[..., 1]
-        dist = np.hypot(dx, dy)
-        valid = self._not_self & present[None, :]
-        dist = np.where(valid, dist, np.inf)
-
-        # Avoid: obstacles ahead (relative to the goal direction), before the goal, in the corridor.
-        ux, uy = u[:, 0:1], u[:, 1:2]
-        ahead = dx * ux + dy * uy
-        lateral = ux * dy - uy * dx  # > 0: obstacle on the left
-        corridor = 2 * r + CORRIDOR_MARGIN_M
-        in_way = (ahead > 0) & (np.abs(lateral) < corridor) & (dist < self.sensing)
-        in_way &= dist < gdist[:, None]
-        weight = _clip((self.sensing - dist) / (self.sensing - 2 * r), 0.0, 1.0)
-        weight = weight * (1.0 - np.abs(lateral) / corridor) * in_way
-        side = np.where(lateral < 0, -1.0, 1.0)  # +1 = steer right
-        steer = _clip((weight * side).sum(axis=1), -2.0, 2.0)
-        right = np.stack([u[:, 1], -u[:, 0]], axis=1)
-        desired = u + STEER_GAIN * steer[:, None] * right
-
-        # Keep apart from robots that are too close, whatever the direction.
-        near = 2 * r + KEEP_APART_MARGIN_M
-        overlap = _clip((near - dist) / KEEP_APART_MARGIN_M, 0.0, 2.0)
-        inv = overlap / np.maximum(dist, 1e-9)
-        desired[:, 0] -= (inv * dx).sum(axis=1)
-        desired[:, 1] -= (inv * dy).sum(axis=1)
-
-        # Keep off the walls.
-        lo = r + WALL_RANGE_M
-        x, y = pos[:, 0], pos[:, 1]
-        desired[:, 0] += _clip((lo - x) / WALL_RANGE_M, 0, 1) - _clip(
-            (x - (self.width - lo)) / WALL_RANGE_M, 0, 1
+        n = pos.shape[0]
+        velocity = np.empty((n, 2))
+        new_heading = np.empty(n)
+        steer_all(
+            np.ascontiguousarray(pos, dtype=np.float64),
+            np.ascontiguousarray(heading, dtype=np.float64),
+            np.ascontiguousarray(target, dtype=np.float64),
+            np.ascontiguousarray(moving, dtype=np.bool_),
+            np.ascontiguousarray(top_speed, dtype=np.float64),
+            np.ascontiguousarray(present, dtype=np.bool_),
+            self.radius,
+            self.sensing,
+            self.turn_step,
+            self.width,
+            self.height,
+            velocity,
+            new_heading,
         )
-        desired[:, 1] += _clip((lo - y) / WALL_RANGE_M, 0, 1) - _clip(
-            (y - (self.height - lo)) / WALL_RANGE_M, 0, 1
-        )
-
-        active = moving & present & (gdist > ARRIVED_M)
-        phi = np.arctan2(desired[:, 1], desired[:, 0])
-        err = (phi - heading + math.pi) % (2 * math.pi) - math.pi
-        turn = _clip(err, -self.turn_step, self.turn_step)
-        new_heading = np.where(active, heading + turn, heading)
-        remaining = err - turn
-
-        speed = top_speed * _clip(np.cos(remaining), 0.0, 1.0) ** 2
-        speed = np.minimum(speed, gdist / APPROACH_TIME_S)
-
-        # Brake for robots in the swept corridor along the actual heading.
-        hx, hy = np.cos(new_heading)[:, None], np.sin(new_heading)[:, None]
-        along = dx * hx + dy * hy
-        across = np.abs(hx * dy - hy * dx)
-        contact = 2 * r
-        blocking = (along > 0) & (across < contact)
-        gap = along - np.sqrt(np.maximum(contact**2 - across**2, 0.0))
-        free = np.where(blocking, gap, np.inf).min(axis=1)
-        speed = speed * _clip((free - BRAKE_GAP_M) / BRAKE_DISTANCE_M, 0.0, 1.0)
-
-        speed = np.where(active, speed, 0.0)
-        velocity = np.stack([speed * np.cos(new_heading), speed * np.sin(new_heading)], axis=1)
         return Command(velocity=velocity, heading=new_heading)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tavc_env.config import ArenaConfig
-from tavc_env.navigation import Navigator
+from tavc_env.navigation import Navigator, arrivals
 from tavc_env.tasks import Completion, Mode, Phase, TaskCycle
 from tavc_env.world import World
 
@@ -38,7 +38,10 @@ class Simulation:
         n = config.n_robots
         self.speeds = np.array([r.speed for r in config.robots], dtype=float)
         self.speed_factor = np.ones(n)
+        self.top_speed = self.speeds.copy()  # speeds * speed_factor, updated at each new leg
         self.heading = np.zeros(n)
+        self._pos = np.zeros((n, 2))  # positions after the last physics step
+        self._hits = np.zeros(n, dtype=np.int64)
         self.time_s = 0.0
         self.ticks = 0
         self.rng = np.random.default_rng(0)
@@ -67,8 +70,10 @@ class Simulation:
             positions[i] = sink.dock if k == 0 else sink.slots[k - 1]
             self.tasks.start(int(i), c)
         self.world.place(positions)
+        self._pos = self.world.positions()
         self.heading = rng.uniform(-math.pi, math.pi, size=n)
         self.speed_factor = np.ones(n)
+        self.top_speed = self.speeds.copy()
         self._schedule = sorted(
             (b.at_s, 0, b.robot, -1.0 if b.repair_after_s is None else b.repair_after_s)
             for b in cfg.breakdowns
@@ -86,6 +91,7 @@ class Simulation:
             self.speed_factor[robot] = float(
                 np.clip(1.0 + noise * self.rng.standard_normal(), 0.5, 1.5)
             )
+            self.top_speed[robot] = self.speeds[robot] * self.speed_factor[robot]
 
     def break_down(self, robot: int) -> None:
         if self.tasks.phase[robot] == Phase.BROKEN:
@@ -103,6 +109,7 @@ class Simulation:
         if self.tasks.phase[robot] != Phase.BROKEN:
             return
         self.world.restore_robot(robot, self.rng)
+        self._pos = self.world.positions()
         self.tasks.repair(robot)
 
     # -- time ----------------------------------------------------------------------------------
@@ -126,35 +133,28 @@ class Simulation:
     def _tick(self, out: Advance) -> None:
         dt = self.config.dt
         tasks = self.tasks
-        pos = self.world.positions()
         cmd = self.nav.command(
-            pos,
-            self.heading,
-            tasks.target,
-            tasks.moving,
-            self.speeds * self.speed_factor,
-            self.world.in_space,
+            self._pos, self.heading, tasks.target, tasks.moving, self.top_speed, self.world.in_space
         )
         self.heading = cmd.heading
         self.world.set_velocities(cmd.velocity)
         self.world.step(dt)
+        self._pos = self.world.positions()
         self.ticks += 1
         self.time_s = self.ticks * dt
         now = self.time_s
 
-        done = np.flatnonzero(tasks.service_until <= now + 1e-9)
-        for i in done:
-            completion = tasks.finish_service(int(i), now)
-            if completion is None:
-                self._new_leg(int(i))
-            else:
-                out.completions.append(completion)
-        if np.any(tasks.trigger > 0):
-            pos = self.world.positions()
-            gap = np.hypot(*(tasks.target - pos).T)
-            for i in np.flatnonzero((tasks.trigger > 0) & (gap <= tasks.trigger)):
-                tasks.arrive(int(i), now)
-        self._run_schedule(now, out)
+        if tasks.service_until.min() <= now + 1e-9:
+            for i in np.flatnonzero(tasks.service_until <= now + 1e-9):
+                completion = tasks.finish_service(int(i), now)
+                if completion is None:
+                    self._new_leg(int(i))
+                else:
+                    out.completions.append(completion)
+        for k in range(arrivals(self._pos, tasks.target, tasks.trigger, self._hits)):
+            tasks.arrive(int(self._hits[k]), now)
+        if self._schedule and self._schedule[0][0] <= now + 1e-9:
+            self._run_schedule(now, out)
 
     def _run_schedule(self, now: float, out: Advance) -> None:
         while self._schedule and self._schedule[0][0] <= now + 1e-9:
@@ -172,7 +172,8 @@ class Simulation:
 
     # -- views ---------------------------------------------------------------------------------
     def positions(self) -> np.ndarray:
-        return self.world.positions()
+        """Robot centres after the last physics step, shape (n, 2) (a copy)."""
+        return self._pos.copy()
 
     def broken(self) -> np.ndarray:
         return self.tasks.phase == Phase.BROKEN

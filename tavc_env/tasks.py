@@ -142,11 +142,12 @@ class TaskCycle:
         self.trigger = np.full(n, NEVER)  # distance to target that fires an event; NEVER: none
         self.target = np.zeros((n, 2))
         self.completed = np.zeros(n, dtype=np.int64)
+        self.moving = np.zeros(n, dtype=np.bool_)  # robots driving toward a target (kept in sync)
 
     # -- queries -------------------------------------------------------------------------------
-    @property
-    def moving(self) -> np.ndarray:
-        return (self.mode >= _FIRST_MOVING) & (self.mode <= _LAST_MOVING)
+    def _set_mode(self, i: int, mode: Mode) -> None:
+        self.mode[i] = mode
+        self.moving[i] = _FIRST_MOVING <= mode <= _LAST_MOVING
 
     def needs_decision(self) -> np.ndarray:
         return self.phase == Phase.DECIDING
@@ -161,7 +162,7 @@ class TaskCycle:
     def start(self, i: int, circuit: int) -> None:
         """Robot i begins, standing at circuit's sink, waiting for its first decision."""
         self.phase[i] = Phase.DECIDING
-        self.mode[i] = Mode.IDLE
+        self._set_mode(i, Mode.IDLE)
         self.circuit[i] = circuit
         self.station[i] = -1
         self.trigger[i] = NEVER
@@ -176,7 +177,7 @@ class TaskCycle:
 
     def _travel_to(self, i: int, station: int) -> None:
         self.station[i] = station
-        self.mode[i] = Mode.TRAVEL
+        self._set_mode(i, Mode.TRAVEL)
         self.target[i] = self.stations[station].dock
         self.trigger[i] = self.config.join_radius_m
 
@@ -186,7 +187,7 @@ class TaskCycle:
             self._join(i)
         elif self.mode[i] == Mode.DOCKING:
             st = self.stations[self.station[i]]
-            self.mode[i] = Mode.SERVICE
+            self._set_mode(i, Mode.SERVICE)
             self.trigger[i] = NEVER
             self.service_until[i] = now + st.service_s
 
@@ -196,13 +197,13 @@ class TaskCycle:
             self._dock(i, st)
         else:
             st.line.append(i)
-            self.mode[i] = Mode.QUEUED
+            self._set_mode(i, Mode.QUEUED)
             self.target[i] = st.slots[len(st.line) - 1]
             self.trigger[i] = NEVER
 
     def _dock(self, i: int, st: Station) -> None:
         st.occupant = i
-        self.mode[i] = Mode.DOCKING
+        self._set_mode(i, Mode.DOCKING)
         self.target[i] = st.dock
         self.trigger[i] = self.config.dock_tolerance_m
 
@@ -225,7 +226,7 @@ class TaskCycle:
             self._travel_to(i, self.sink_of(c))
             return None
         self.phase[i] = Phase.DECIDING
-        self.mode[i] = Mode.IDLE
+        self._set_mode(i, Mode.IDLE)
         self.station[i] = -1
         self.trigger[i] = NEVER
         self.completed[i] += 1
@@ -243,7 +244,7 @@ class TaskCycle:
                 for k, j in enumerate(st.line):
                     self.target[j] = st.slots[k]
         self.phase[i] = Phase.BROKEN
-        self.mode[i] = Mode.IDLE
+        self._set_mode(i, Mode.IDLE)
         self.station[i] = -1
         self.trigger[i] = NEVER
         self.service_until[i] = math.inf
@@ -251,4 +252,4 @@ class TaskCycle:
     def repair(self, i: int) -> None:
         """Robot i is back: it must decide where to go next (its last circuit stays its state)."""
         self.phase[i] = Phase.DECIDING
-        self.mode[i] = Mode.IDLE
+        self._set_mode(i, Mode.IDLE)

@@ -1,0 +1,107 @@
+"""The sweep runner: many independent trials in parallel, saved as they finish, resumable.
+
+A sweep is a list of `TrialSpec`s (plain data: allocator name and parameters, env arguments,
+seed, periods). Each finished trial is written at once to `<out_dir>/<key>.json` (atomically), so a
+killed sweep loses at most the trials that were running; rerunning the same sweep loads the
+finished ones and runs only the rest. Trials run in a local process pool over all cores by default.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from agents.registry import make_policy
+from agents.runner import TrialResult, run_trial
+
+_KEY = re.compile(r"^[A-Za-z0-9_.=-]+$")
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One trial as data. `key` names its result file and must be unique within a sweep."""
+
+    key: str
+    allocator: str
+    seed: int
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    allocator_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    convergence_s: float = 15 * 3600.0
+    measured_s: float = 5 * 3600.0
+    snapshot_every_s: float = 3600.0
+
+    def __post_init__(self) -> None:
+        if not _KEY.match(self.key):
+            raise ValueError(
+                f"key = {self.key!r} is invalid; allowed: letters, digits and _ . = - (a file name)"
+            )
+
+
+def run_spec(spec: TrialSpec) -> TrialResult:
+    """Run one trial described by `spec` (in whatever process calls it)."""
+    return run_trial(
+        lambda agent: make_policy(spec.allocator, **spec.allocator_kwargs),
+        seed=spec.seed,
+        convergence_s=spec.convergence_s,
+        measured_s=spec.measured_s,
+        snapshot_every_s=spec.snapshot_every_s,
+        label=spec.key,
+        **dict(spec.env_kwargs),
+    )
+
+
+def result_path(out_dir: Path, key: str) -> Path:
+    return out_dir / f"{key}.json"
+
+
+def run_sweep(
+    specs: Sequence[TrialSpec],
+    out_dir: str | Path,
+    workers: int | None = None,
+    on_done: Callable[[TrialSpec, TrialResult, bool], None] | None = None,
+) -> dict[str, TrialResult]:
+    """Run every spec not already finished in `out_dir`; return all results by key.
+
+    `workers`: processes (default: all cores; 1 runs in this process). `on_done(spec, result,
+    resumed)` is called for each trial as it becomes available (resumed: loaded from disk).
+    """
+    keys = [s.key for s in specs]
+    duplicates = sorted({k for k in keys if keys.count(k) > 1})
+    if duplicates:
+        raise ValueError(f"duplicate trial keys {duplicates}; allowed: unique keys")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, TrialResult] = {}
+    todo: list[TrialSpec] = []
+    for spec in specs:
+        path = result_path(out, spec.key)
+        if path.exists():
+            results[spec.key] = TrialResult.load(path)
+            if on_done is not None:
+                on_done(spec, results[spec.key], True)
+        else:
+            todo.append(spec)
+    n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    if n_workers < 1:
+        raise ValueError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
+
+    def finish(spec: TrialSpec, result: TrialResult) -> None:
+        result.save(result_path(out, spec.key))
+        results[spec.key] = result
+        if on_done is not None:
+            on_done(spec, result, False)
+
+    if n_workers == 1 or len(todo) <= 1:
+        for spec in todo:
+            finish(spec, run_spec(spec))
+        return results
+    with ProcessPoolExecutor(max_workers=min(n_workers, len(todo))) as pool:
+        futures = {pool.submit(run_spec, spec): spec for spec in todo}
+        for future in as_completed(futures):
+            finish(futures[future], future.result())
+    return results
