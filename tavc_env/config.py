@@ -13,16 +13,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
+from tavc_env._validation import is_integer, is_number, require
+from tavc_env.layout import waiting_slots
+
 Point = tuple[float, float]
-
-
-def _is_number(value: object) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _require(condition: bool, name: str, value: object, allowed: str) -> None:
-    if not condition:
-        raise ValueError(f"{name} = {value!r} is invalid; allowed: {allowed}")
 
 
 def _point(name: str, value: object) -> Point:
@@ -30,9 +26,9 @@ def _point(name: str, value: object) -> Point:
         isinstance(value, Sequence)
         and not isinstance(value, str)
         and len(value) == 2
-        and all(_is_number(v) for v in value)
+        and all(is_number(v) for v in value)
     )
-    _require(ok, name, value, "a pair of finite numbers (x, y) in metres")
+    require(ok, name, value, "a pair of finite numbers (x, y) in metres")
     assert isinstance(value, Sequence)
     return (float(value[0]), float(value[1]))
 
@@ -55,10 +51,10 @@ class Circuit:
         object.__setattr__(self, "sink", _point("circuit.sink", self.sink))
         d = _point("circuit.queue_direction", self.queue_direction)
         norm = math.hypot(*d)
-        _require(norm > 0, "circuit.queue_direction", self.queue_direction, "a non-zero vector")
+        require(norm > 0, "circuit.queue_direction", self.queue_direction, "a non-zero vector")
         object.__setattr__(self, "queue_direction", (d[0] / norm, d[1] / norm))
-        _require(
-            _is_number(self.value) and self.value > 0,
+        require(
+            is_number(self.value) and self.value > 0,
             "circuit.value",
             self.value,
             "a finite number > 0",
@@ -73,8 +69,8 @@ class Robot:
     speed_class: str = ""
 
     def __post_init__(self) -> None:
-        _require(
-            _is_number(self.speed) and 0 < self.speed <= 2.0,
+        require(
+            is_number(self.speed) and 0 < self.speed <= 2.0,
             "robot.speed",
             self.speed,
             "a finite speed in (0, 2] m/s",
@@ -91,18 +87,18 @@ class Breakdown:
     repair_after_s: float | None = None
 
     def __post_init__(self) -> None:
-        _require(
-            isinstance(self.robot, int) and not isinstance(self.robot, bool) and self.robot >= 0,
+        require(
+            is_integer(self.robot) and self.robot >= 0,
             "breakdown.robot",
             self.robot,
             "a robot index >= 0",
         )
-        _require(
-            _is_number(self.at_s) and self.at_s >= 0, "breakdown.at_s", self.at_s, "a time >= 0 s"
+        require(
+            is_number(self.at_s) and self.at_s >= 0, "breakdown.at_s", self.at_s, "a time >= 0 s"
         )
-        _require(
+        require(
             self.repair_after_s is None
-            or (_is_number(self.repair_after_s) and self.repair_after_s > 0),
+            or (is_number(self.repair_after_s) and self.repair_after_s > 0),
             "breakdown.repair_after_s",
             self.repair_after_s,
             "None or a duration > 0 s",
@@ -163,46 +159,46 @@ class ArenaConfig:
             "sensing_range_m": self.sensing_range_m,
         }
         for name, value in positive.items():
-            _require(_is_number(value) and value > 0, name, value, "a finite number > 0")
+            require(is_number(value) and value > 0, name, value, "a finite number > 0")
         for name in ("source_service_s", "sink_service_s"):
             value = getattr(self, name)
-            _require(_is_number(value) and value >= 0, name, value, "a finite time >= 0 s")
-        _require(
-            _is_number(self.dt) and 0 < self.dt <= 0.5,
+            require(is_number(value) and value >= 0, name, value, "a finite time >= 0 s")
+        require(
+            is_number(self.dt) and 0 < self.dt <= 0.5,
             "dt",
             self.dt,
             "a physics step in (0, 0.5] s",
         )
-        _require(
-            _is_number(self.speed_noise) and 0 <= self.speed_noise <= 0.3,
+        require(
+            is_number(self.speed_noise) and 0 <= self.speed_noise <= 0.3,
             "speed_noise",
             self.speed_noise,
             "a relative standard deviation in [0, 0.3]",
         )
-        _require(
+        require(
             self.robot_radius * 4 <= min(self.width, self.height),
             "robot_radius",
             self.robot_radius,
             f"at most a quarter of the arena's smaller side ({min(self.width, self.height) / 4} m)",
         )
-        _require(
+        require(
             self.queue_spacing_m >= 2 * self.robot_radius,
             "queue_spacing_m",
             self.queue_spacing_m,
             f">= the robot diameter {2 * self.robot_radius} m",
         )
-        _require(
+        require(
             self.queue_offset_m >= 2 * self.robot_radius,
             "queue_offset_m",
             self.queue_offset_m,
             f">= the robot diameter {2 * self.robot_radius} m",
         )
-        _require(len(self.circuits) >= 1, "circuits", self.circuits, "at least one Circuit")
-        _require(len(self.robots) >= 1, "robots", self.robots, "at least one Robot")
+        require(len(self.circuits) >= 1, "circuits", self.circuits, "at least one Circuit")
+        require(len(self.robots) >= 1, "robots", self.robots, "at least one Robot")
         for i, c in enumerate(self.circuits):
-            _require(isinstance(c, Circuit), f"circuits[{i}]", c, "a tavc_env.Circuit")
+            require(isinstance(c, Circuit), f"circuits[{i}]", c, "a tavc_env.Circuit")
         for i, r in enumerate(self.robots):
-            _require(isinstance(r, Robot), f"robots[{i}]", r, "a tavc_env.Robot")
+            require(isinstance(r, Robot), f"robots[{i}]", r, "a tavc_env.Robot")
         margin = self.robot_radius + 0.05
         inside = f"x in [{margin}, {self.width - margin}], y in [{margin}, {self.height - margin}]"
         stations: list[tuple[str, Point]] = []
@@ -212,7 +208,7 @@ class ArenaConfig:
                 ok = (
                     margin <= p[0] <= self.width - margin and margin <= p[1] <= self.height - margin
                 )
-                _require(ok, name, p, f"a point inside the arena: {inside}")
+                require(ok, name, p, f"a point inside the arena: {inside}")
                 stations.append((name, p))
         # Two docks closer than two robot diameters would make one robot's service block the other
         # station, so the circuits would not be separate task classes.
@@ -221,17 +217,15 @@ class ArenaConfig:
             for b in range(a + 1, len(stations)):
                 (na, pa), (nb, pb) = stations[a], stations[b]
                 gap = math.dist(pa, pb)
-                _require(
+                require(
                     gap >= min_gap,
                     f"{nb} (distance to {na})",
                     round(gap, 3),
                     f"stations at least {min_gap} m apart (overlapping circuits)",
                 )
         for i, event in enumerate(self.breakdowns):
-            _require(
-                isinstance(event, Breakdown), f"breakdowns[{i}]", event, "a tavc_env.Breakdown"
-            )
-            _require(
+            require(isinstance(event, Breakdown), f"breakdowns[{i}]", event, "a tavc_env.Breakdown")
+            require(
                 event.robot < self.n_robots,
                 f"breakdowns[{i}].robot",
                 event.robot,
@@ -239,12 +233,49 @@ class ArenaConfig:
             )
         free_area = self.width * self.height
         footprint = self.n_robots * (2 * self.robot_radius + 0.1) ** 2
-        _require(
+        require(
             footprint <= 0.25 * free_area,
             "robots",
             f"{self.n_robots} robots",
             f"at most {int(0.25 * free_area / (2 * self.robot_radius + 0.1) ** 2)} robots of radius "
             f"{self.robot_radius} m in a {self.width} x {self.height} m arena (robots cannot fit)",
+        )
+
+        for k, (name, _, _) in enumerate(self.stations()):
+            slots = self.waiting_slots(k, self.n_robots - 1)
+            require(
+                len(slots) >= self.n_robots - 1,
+                f"{name} waiting line",
+                f"room for {len(slots)} robots",
+                f"room for all {self.n_robots - 1} robots that may wait there (a larger arena, "
+                "fewer robots, circuits further apart or another queue_direction)",
+            )
+
+    def stations(self) -> list[tuple[str, Point, Point]]:
+        """(name, dock, queue direction) of every station: source then sink of each circuit."""
+        out = []
+        for i, c in enumerate(self.circuits):
+            out.append((f"circuits[{i}].source", c.source, c.queue_direction))
+            out.append((f"circuits[{i}].sink", c.sink, c.queue_direction))
+        return out
+
+    def docks(self) -> list[Point]:
+        return [dock for _, dock, _ in self.stations()]
+
+    def waiting_slots(self, station: int, count: int) -> np.ndarray:
+        """Up to `count` waiting positions of station `station` (index into `stations()`)."""
+        _, dock, direction = self.stations()[station]
+        others = [d for k, d in enumerate(self.docks()) if k != station]
+        return waiting_slots(
+            dock,
+            direction,
+            others,
+            self.width,
+            self.height,
+            self.robot_radius,
+            self.queue_offset_m,
+            self.queue_spacing_m,
+            count,
         )
 
     def replace(self, **changes: Any) -> ArenaConfig:
@@ -265,7 +296,7 @@ def lane_circuits(
     circuit's sink to another circuit's source is a long diagonal: circuits are spatially
     classifiable. Waiting lines run along the top and bottom walls toward the arena's centre.
     """
-    _require(
+    require(
         isinstance(n_circuits, int) and n_circuits >= 1,
         "n_circuits",
         n_circuits,
@@ -273,7 +304,7 @@ def lane_circuits(
     )
     if values is None:
         values = [2200.0 - 200.0 * i for i in range(n_circuits)]
-    _require(
+    require(
         len(values) == n_circuits, "values", values, f"a sequence of {n_circuits} circuit values"
     )
     xs = (
@@ -319,7 +350,7 @@ PRESETS: Mapping[str, Any] = {
 
 def preset(name: str) -> ArenaConfig:
     """The named preset's configuration."""
-    _require(name in PRESETS, "preset", name, f"one of {sorted(PRESETS)}")
+    require(name in PRESETS, "preset", name, f"one of {sorted(PRESETS)}")
     config: ArenaConfig = PRESETS[name]()
     return config
 
@@ -334,7 +365,7 @@ def make_config(
     per circuit, keeping the geometry). Unknown keys raise a ValueError listing what is allowed.
     """
     base = config if config is not None else preset(preset_name)
-    _require(isinstance(base, ArenaConfig), "config", base, "a tavc_env.ArenaConfig or None")
+    require(isinstance(base, ArenaConfig), "config", base, "a tavc_env.ArenaConfig or None")
     fields = {f.name for f in dataclasses.fields(ArenaConfig)}
     shorthands = {"speeds", "values"}
     unknown = sorted(set(overrides) - fields - shorthands)
@@ -344,14 +375,14 @@ def make_config(
         )
     changes = {k: v for k, v in overrides.items() if k in fields}
     if "speeds" in overrides:
-        _require(
+        require(
             "robots" not in overrides, "speeds", overrides["speeds"], "speeds or robots, not both"
         )
         changes["robots"] = robots_from_speeds(overrides["speeds"])
     if "values" in overrides:
         circuits = changes.get("circuits", base.circuits)
         values = overrides["values"]
-        _require(
+        require(
             isinstance(values, Sequence) and len(values) == len(circuits),
             "values",
             values,
@@ -365,12 +396,16 @@ def make_config(
 
 def robots_from_speeds(speeds: Sequence[float]) -> tuple[Robot, ...]:
     """Robots with the given top speeds, labelled fast / slow / medium relative to the mean speed."""
-    _require(
-        isinstance(speeds, Sequence) and len(speeds) >= 1 and all(_is_number(s) for s in speeds),
+    require(
+        isinstance(speeds, Sequence) and len(speeds) >= 1 and all(is_number(s) for s in speeds),
         "speeds",
         speeds,
         "a non-empty sequence of speeds in m/s",
     )
+    for i, speed in enumerate(speeds):
+        require(
+            is_number(speed) and 0 < speed <= 2.0, f"speeds[{i}]", speed, "a speed in (0, 2] m/s"
+        )
     mean = sum(speeds) / len(speeds)
     labels = [
         "fast" if s > mean + 1e-9 else "slow" if s < mean - 1e-9 else "medium" for s in speeds

@@ -17,6 +17,7 @@ has to decide must be given a valid action, or `step` raises a ValueError and ch
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar
 
 import numpy as np
@@ -26,6 +27,7 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 from pettingzoo.utils.env import AECEnv
 
+from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, make_config
 from tavc_env.simulation import Advance, Simulation
 from tavc_env.tasks import PHASE_NAMES, Phase
@@ -34,11 +36,6 @@ ENV_NAME = "tavc_arena_v0"
 RENDER_MODES = ("human", "rgb_array")
 TIME_UNITS = {"ms": 1000.0, "s": 1.0}
 N_PHASES = len(Phase)
-
-
-def _check(condition: bool, name: str, value: object, allowed: str) -> None:
-    if not condition:
-        raise ValueError(f"{name} = {value!r} is invalid; allowed: {allowed}")
 
 
 class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
@@ -77,45 +74,48 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
     ) -> None:
         self.config = make_config(preset, config, **overrides)
         dt = self.config.dt
-        _check(
+        require(
             render_mode is None or render_mode in RENDER_MODES,
             "render_mode",
             render_mode,
             f"None or one of {list(RENDER_MODES)}",
         )
-        _check(
-            isinstance(max_cycles, int) and not isinstance(max_cycles, bool) and max_cycles >= 1,
-            "max_cycles",
-            max_cycles,
-            "an integer >= 1",
+        require(
+            is_integer(max_cycles) and max_cycles >= 1, "max_cycles", max_cycles, "an integer >= 1"
         )
-        _check(
-            isinstance(max_sim_time_s, (int, float)) and max_sim_time_s >= dt,
+        require(
+            max_sim_time_s == math.inf or (is_number(max_sim_time_s) and max_sim_time_s >= dt),
             "max_sim_time_s",
             max_sim_time_s,
-            f"a time >= one physics step ({dt} s)",
+            f"a time >= one physics step ({dt} s), or math.inf",
         )
-        _check(
+        steps = decision_interval_s / dt if is_number(decision_interval_s) else None
+        require(
             decision_interval_s is None
-            or (isinstance(decision_interval_s, (int, float)) and decision_interval_s >= dt),
+            or (
+                is_number(decision_interval_s)
+                and steps is not None
+                and steps >= 1 - 1e-9
+                and abs(steps - round(steps)) < 1e-6
+            ),
             "decision_interval_s",
             decision_interval_s,
-            f"None (event-driven) or a time >= one physics step ({dt} s)",
+            f"None (event-driven) or a finite whole number of physics steps (multiples of dt = {dt} s)",
         )
-        _check(
+        require(
             reward_time_unit in TIME_UNITS,
             "reward_time_unit",
             reward_time_unit,
             str(list(TIME_UNITS)),
         )
-        _check(
-            isinstance(step_cap_s, (int, float)) and step_cap_s >= dt,
+        require(
+            is_number(step_cap_s) and step_cap_s >= dt,
             "step_cap_s",
             step_cap_s,
-            f"a time >= one physics step ({dt} s)",
+            f"a finite time >= one physics step ({dt} s)",
         )
         self.render_mode = render_mode
-        self.max_cycles = max_cycles
+        self.max_cycles = int(max_cycles)
         self.max_sim_time_s = float(max_sim_time_s)
         self.decision_interval_s = decision_interval_s
         self.reward_time_unit = reward_time_unit
@@ -204,6 +204,8 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         """Global state: per robot [x/W, y/H, cos h, sin h, vx/v, vy/v, circuit one-hot, phase
         one-hot]; per station [occupied, line length / n_robots]. Velocities are divided by the
         robot's top speed and clipped to [-1, 1] (contacts can briefly push a robot faster)."""
+        if self._rng is None:
+            raise ValueError("state() called before reset(); allowed: call reset() first")
         cfg = self.config
         sim = self.sim
         n, m = cfg.n_robots, cfg.n_circuits
@@ -252,7 +254,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         """Repair robot `agent`: it returns to the floor in the next step, which ends with it
         deciding (a decision epoch, like a scheduled repair)."""
         i, name = self._agent_index(agent, "agent")
-        _check(self.sim.broken()[i], "agent", name, "a robot that is broken")
+        require(self.sim.broken()[i], "agent", name, "a robot that is broken")
         self.sim.schedule_repair(i)
 
     # -- helpers -------------------------------------------------------------------------------
@@ -263,7 +265,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
 
     def _validate(self, actions: object) -> list[tuple[int, int]]:
         """Check every action before touching the world, so bad input changes nothing."""
-        _check(
+        require(
             isinstance(actions, dict), "actions", type(actions).__name__, "a dict agent -> action"
         )
         assert isinstance(actions, dict)
@@ -279,10 +281,14 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
                     f"missing action for {agent}, which must decide; allowed: an integer in [0, {m - 1}]"
                 )
             a = actions[agent]
-            ok = isinstance(a, (int, np.integer)) and not isinstance(a, bool) and 0 <= int(a) < m
-            if isinstance(a, np.ndarray) and a.shape == () and np.issubdtype(a.dtype, np.integer):
-                ok = 0 <= int(a) < m
-            _check(ok, f"action of {agent}", a, f"an integer circuit index in [0, {m - 1}]")
+            if isinstance(a, np.ndarray) and a.shape == ():
+                a = a.item()
+            require(
+                is_integer(a) and 0 <= int(a) < m,
+                f"action of {agent}",
+                a,
+                f"an integer circuit index in [0, {m - 1}]",
+            )
             choices.append((int(i), int(a)))
         return choices
 
@@ -294,7 +300,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         for c in out.completions:
             agent = self.possible_agents[c.robot]
             rewards[agent] += float(values[c.circuit] / (c.task_time_s * unit))
-            self._last_task_time[c.robot] = c.task_time_s
+            self._last_task_time[c.robot] = float(c.task_time_s)
         return rewards
 
     def _observations(self) -> dict[str, dict[str, np.ndarray]]:

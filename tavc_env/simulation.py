@@ -111,6 +111,8 @@ class Simulation:
         self.world.restore_robot(robot, self.rng)
         self._pos = self.world.positions()
         self.tasks.repair(robot)
+        # Any other repair still scheduled for this robot belongs to a breakdown that is over.
+        self._schedule = [e for e in self._schedule if not (e[1] == 1 and e[2] == robot)]
 
     # -- time ----------------------------------------------------------------------------------
     def advance(self, max_duration_s: float, stop_on_decision: bool = True) -> Advance:

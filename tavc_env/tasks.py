@@ -76,62 +76,21 @@ class Completion:
     time_s: float
 
 
-def waiting_slots(
-    config: ArenaConfig, dock: tuple[float, float], direction: tuple[float, float]
-) -> np.ndarray:
-    """Waiting slots in a line from the dock along `direction`, folding into a new row (one spacing
-    further from the nearest wall across the line) where the line would leave the arena."""
-    r = config.robot_radius
-    margin = r + 0.1
-    lo = np.array([margin, margin])
-    hi = np.array([config.width - margin, config.height - margin])
-    base = np.array(dock, dtype=float)
-    along = np.array(direction, dtype=float)
-    across = np.array([-along[1], along[0]])
-    # The new row grows toward the arena's interior.
-    centre = np.array([config.width / 2, config.height / 2])
-    if np.dot(centre - base, across) < 0:
-        across = -across
-    slots: list[np.ndarray] = []
-    row, k = 0, 0
-    while len(slots) < config.n_robots:
-        p = base + along * (config.queue_offset_m + k * config.queue_spacing_m)
-        p = p + across * row * config.queue_spacing_m
-        if np.all(p >= lo) and np.all(p <= hi):
-            slots.append(p)
-            k += 1
-        elif k == 0:
-            # Even the first slot of this row is outside: the arena is too small for the line.
-            slots.append(np.clip(p, lo, hi))
-            k += 1
-        else:
-            row, k = row + 1, 0
-        if row > 50:
-            break
-    while len(slots) < config.n_robots:
-        slots.append(slots[-1])
-    return np.array(slots)
-
-
 class TaskCycle:
     """Per-robot task state and the stations; advanced by the simulation at events only."""
 
     def __init__(self, config: ArenaConfig) -> None:
         self.config = config
         n = config.n_robots
-        self.stations: list[Station] = []
-        for c in config.circuits:
-            for point, service in (
-                (c.source, config.source_service_s),
-                (c.sink, config.sink_service_s),
-            ):
-                self.stations.append(
-                    Station(
-                        dock=np.array(point, dtype=float),
-                        slots=waiting_slots(config, point, c.queue_direction),
-                        service_s=service,
-                    )
-                )
+        # Station k is the source (k even) or sink (k odd) of circuit k // 2.
+        self.stations = [
+            Station(
+                dock=np.array(dock, dtype=float),
+                slots=config.waiting_slots(k, max(n - 1, 1)),
+                service_s=config.source_service_s if k % 2 == 0 else config.sink_service_s,
+            )
+            for k, (_, dock, _) in enumerate(config.stations())
+        ]
         self.values = np.array([c.value for c in config.circuits], dtype=float)
         self.phase = np.zeros(n, dtype=np.int64)
         self.mode = np.zeros(n, dtype=np.int64)

@@ -1,0 +1,31 @@
+"""Fixtures for the tavc-env test suite; plain helpers live in tests/helpers.py.
+
+Rendering runs headless: SDL's dummy video driver is selected here, before anything imports pygame.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ["SDL_VIDEODRIVER"] = "dummy"
+os.environ["SDL_AUDIODRIVER"] = "dummy"
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+import pytest
+
+from tests.helpers import CrowdTrace, record_crowd_run
+
+
+@pytest.fixture(scope="session")
+def crowd_trace() -> CrowdTrace:
+    """One 30-simulated-minute run of all six `dahl2004` robots crowding circuit 0, recorded every
+    physics tick (about 5 s of wall time; computed once per test process)."""
+    return record_crowd_run(seed=0)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # pettingzoo.test imports its example envs through a deprecated shim at collection time; that
+    # notice is PettingZoo's own and says nothing about tavc-env.
+    config.addinivalue_line(
+        "filterwarnings", "ignore:The old environment creation API:DeprecationWarning"
+    )
