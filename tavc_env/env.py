@@ -89,7 +89,11 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             max_sim_time_s,
             f"a time >= one physics step ({dt} s), or math.inf",
         )
-        steps = decision_interval_s / dt if is_number(decision_interval_s) else None
+        steps = (
+            decision_interval_s / dt
+            if decision_interval_s is not None and is_number(decision_interval_s)
+            else None
+        )
         require(
             decision_interval_s is None
             or (
