@@ -113,6 +113,10 @@ class ArenaConfig:
     dock, stand there for the service time (loading at a source, unloading at a sink), and leave.
     Robots that arrive while a station is busy wait in a physical line beside it, first come first
     served. This is where most interference comes from (see DESIGN.md section 2 and the README).
+
+    With `service_scales_with_speed`, a robot's loading and unloading take the service time times
+    `service_reference_speed / speed`: a faster robot is faster at the whole task, docking and
+    handling included (the paper treats speed as task-processing speed). Off by default.
     """
 
     width: float = 12.0
@@ -122,6 +126,8 @@ class ArenaConfig:
     robot_radius: float = 0.22
     source_service_s: float = 20.0
     sink_service_s: float = 4.0
+    service_scales_with_speed: bool = False
+    service_reference_speed: float = 0.25
     queue_offset_m: float = 0.9
     queue_spacing_m: float = 0.6
     join_radius_m: float = 1.5
@@ -157,9 +163,16 @@ class ArenaConfig:
             "dock_tolerance_m": self.dock_tolerance_m,
             "max_turn_rate": self.max_turn_rate,
             "sensing_range_m": self.sensing_range_m,
+            "service_reference_speed": self.service_reference_speed,
         }
         for name, value in positive.items():
             require(is_number(value) and value > 0, name, value, "a finite number > 0")
+        require(
+            isinstance(self.service_scales_with_speed, bool),
+            "service_scales_with_speed",
+            self.service_scales_with_speed,
+            "True or False",
+        )
         for name in ("source_service_s", "sink_service_s"):
             value = getattr(self, name)
             require(is_number(value) and value >= 0, name, value, "a finite time >= 0 s")

@@ -92,6 +92,12 @@ class TaskCycle:
             for k, (_, dock, _) in enumerate(config.stations())
         ]
         self.values = np.array([c.value for c in config.circuits], dtype=float)
+        speeds = np.array([r.speed for r in config.robots], dtype=float)
+        self.service_scale = (
+            config.service_reference_speed / speeds
+            if config.service_scales_with_speed
+            else np.ones(n)
+        )
         self.phase = np.zeros(n, dtype=np.int64)
         self.mode = np.zeros(n, dtype=np.int64)
         self.circuit = np.zeros(n, dtype=np.int64)
@@ -148,7 +154,7 @@ class TaskCycle:
             st = self.stations[self.station[i]]
             self._set_mode(i, Mode.SERVICE)
             self.trigger[i] = NEVER
-            self.service_until[i] = now + st.service_s
+            self.service_until[i] = now + st.service_s * self.service_scale[i]
 
     def _join(self, i: int) -> None:
         st = self.stations[self.station[i]]
