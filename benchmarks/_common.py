@@ -299,6 +299,24 @@ def fmt_ci(mean: float, low: float, high: float, digits: int = 1) -> str:
     return f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
 
 
+def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
+    """Arena overrides from `KEY=VALUE` strings (as given to `--set`): values that parse as JSON
+    (numbers, true/false, lists) are used as such, anything else as a string. The arena's own
+    validation then names any key or value it does not accept."""
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise ValueError(
+                f"--set {item!r} is invalid; allowed: KEY=VALUE, e.g. source_service_s=15"
+            )
+        try:
+            overrides[key] = json.loads(text)
+        except json.JSONDecodeError:
+            overrides[key] = text
+    return overrides
+
+
 def have_matplotlib() -> bool:
     try:
         import matplotlib  # noqa: F401

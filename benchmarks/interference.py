@@ -60,6 +60,7 @@ from _common import (
     have_matplotlib,
     markdown_table,
     mean_ci,
+    parse_overrides,
     ratio_ci,
     run_metadata,
     write_results,
@@ -88,11 +89,12 @@ class Job:
     switch_every: int = 3
     speeds: tuple[float, ...] | None = None
     label: str = ""
+    arena: tuple[tuple[str, Any], ...] = ()  # ArenaConfig overrides (--set)
 
 
 def run_job(job: Job) -> dict[str, Any]:
     """One run; returns every counted task (robot, class, circuit, time, kind)."""
-    overrides: dict[str, Any] = {}
+    overrides: dict[str, Any] = dict(job.arena)
     if job.speeds is not None:
         overrides["speeds"] = list(job.speeds)
     cfg = tavc_env.make_config(job.preset, **overrides)
@@ -160,9 +162,21 @@ def run_job(job: Job) -> dict[str, Any]:
 
 
 # -- job lists ---------------------------------------------------------------------------------
-def make_jobs(seeds: list[int], hours: float, warmup_s: float, skip: int, k: int) -> list[Job]:
+def make_jobs(
+    seeds: list[int],
+    hours: float,
+    warmup_s: float,
+    skip: int,
+    k: int,
+    arena: tuple[tuple[str, Any], ...] = (),
+) -> list[Job]:
     jobs: list[Job] = []
-    common = {"hours": hours, "warmup_s": warmup_s, "skip_first": skip}
+    common: dict[str, Any] = {
+        "hours": hours,
+        "warmup_s": warmup_s,
+        "skip_first": skip,
+        "arena": arena,
+    }
     for s in seeds:
         for n0 in range(7):  # n0 robots on circuit 0, 6 - n0 on circuit 1
             alloc = tuple([0] * n0 + [1] * (6 - n0))
@@ -784,7 +798,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--switch-every", type=int, default=3, help="switcher's block length (tasks)")
     p.add_argument("--out", type=Path, default=RESULTS_DIR, help="output directory")
     p.add_argument("--quick", action="store_true", help="smoke run: 2 seeds x 0.12 h")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="arena override for every run, e.g. --set service_scales_with_speed=true (repeatable)",
+    )
     args = p.parse_args(argv)
+    try:
+        args.arena = tuple(sorted(parse_overrides(args.set).items()))
+    except ValueError as error:
+        p.error(str(error))
     if args.quick:
         args.seeds, args.hours, args.warmup_min, args.skip_first = 2, 0.12, 0.5, 1
     args.workers = max(1, min(args.workers, 2))
@@ -794,7 +819,12 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
 
     jobs = make_jobs(
-        args.seed_list, args.hours, args.warmup_min * 60.0, args.skip_first, args.switch_every
+        args.seed_list,
+        args.hours,
+        args.warmup_min * 60.0,
+        args.skip_first,
+        args.switch_every,
+        args.arena,
     )
     # longest first, so the pool does not end on a lone straggler
     jobs.sort(key=lambda j: (j.experiment == "switch_lone", j.seed))
@@ -852,6 +882,7 @@ def main(argv: list[str] | None = None) -> int:
             "skip_first": args.skip_first,
             "switch_every": args.switch_every,
             "workers": args.workers,
+            "arena_overrides": dict(args.arena),
         },
     )
     fields = [

@@ -37,6 +37,7 @@ from _common import (
     have_matplotlib,
     markdown_table,
     mean_ci,
+    parse_overrides,
     ratio_ci,
     run_metadata,
     write_results,
@@ -436,12 +437,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     unknown = [c for c in chosen if c not in all_conds]
     if unknown:
         ap.error(f"--conditions {unknown} unknown; allowed: {sorted(all_conds)}")
-    overrides: dict[str, Any] = {}
-    for item in args.set:
-        key, sep, value = item.partition("=")
-        if not sep:
-            ap.error(f"--set {item!r} is invalid; allowed: KEY=VALUE")
-        overrides[key] = float(value)
+    try:
+        overrides = parse_overrides(args.set)
+    except ValueError as error:
+        ap.error(str(error))
     suffix = "_quick" if args.quick else ""
     out = args.out or RESULTS_DIR / f"table1_{args.preset}_{args.init}{suffix}"
     out.mkdir(parents=True, exist_ok=True)
