@@ -23,6 +23,7 @@ import numpy as np
 
 import tavc_env
 from agents.policy import Policy
+from tavc_env._validation import is_number, require
 
 PolicyFactory = Callable[[str], Policy]
 
@@ -52,6 +53,7 @@ class TrialResult:
     capped_steps: int = 0
     steps: int = 0
     wall_s: float = 0.0
+    spec: dict[str, Any] = field(default_factory=dict)  # the sweep's TrialSpec, when run by one
 
     @property
     def measured_window(self) -> tuple[float, float]:
@@ -107,10 +109,26 @@ def run_trial(
     simulated time after each step.
     """
     for name, value in (("convergence_s", convergence_s), ("measured_s", measured_s)):
-        if not (isinstance(value, (int, float)) and value >= 0):
-            raise ValueError(f"{name} = {value!r} is invalid; allowed: a duration >= 0 s")
-    if measured_s + convergence_s <= 0:
-        raise ValueError("convergence_s + measured_s is 0; allowed: a positive total duration")
+        require(is_number(value) and value >= 0, name, value, "a finite duration >= 0 s")
+    require(
+        measured_s + convergence_s > 0,
+        "convergence_s + measured_s",
+        measured_s + convergence_s,
+        "a positive total duration",
+    )
+    require(
+        is_number(snapshot_every_s) and snapshot_every_s > 0,
+        "snapshot_every_s",
+        snapshot_every_s,
+        "a finite period > 0 s",
+    )
+    reserved = sorted({"max_sim_time_s", "max_cycles"} & set(env_kwargs))
+    require(
+        not reserved,
+        "env_kwargs",
+        reserved,
+        "no max_sim_time_s / max_cycles: the trial's length is convergence_s + measured_s",
+    )
     total = float(convergence_s + measured_s)
     env = tavc_env.parallel_env(max_sim_time_s=total, max_cycles=10**9, **env_kwargs)
     agents = list(env.possible_agents)
@@ -118,9 +136,11 @@ def run_trial(
         table: dict[str, Policy] = {a: policies(a) for a in agents}
     else:
         missing = sorted(set(agents) - set(policies))
-        if missing:
+        extra = sorted(set(policies) - set(agents))
+        if missing or extra:
             raise ValueError(
-                f"policies missing for {missing}; allowed: one policy per agent {agents}"
+                f"policies missing for {missing} and given for unknown agents {extra}; "
+                f"allowed: one policy per agent {agents}"
             )
         table = dict(policies)
 

@@ -8,11 +8,12 @@ finished ones and runs only the rest. Trials run in a local process pool over al
 
 from __future__ import annotations
 
+import json
 import os
 import re
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -59,6 +60,12 @@ def result_path(out_dir: Path, key: str) -> Path:
     return out_dir / f"{key}.json"
 
 
+def spec_record(spec: TrialSpec) -> dict[str, Any]:
+    """The spec as plain JSON data (what a saved result is checked against on resume)."""
+    data: dict[str, Any] = json.loads(json.dumps(asdict(spec), default=repr))
+    return data
+
+
 def run_sweep(
     specs: Sequence[TrialSpec],
     out_dir: str | Path,
@@ -74,23 +81,31 @@ def run_sweep(
     duplicates = sorted({k for k in keys if keys.count(k) > 1})
     if duplicates:
         raise ValueError(f"duplicate trial keys {duplicates}; allowed: unique keys")
+    n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    if not isinstance(n_workers, int) or n_workers < 1:
+        raise ValueError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     results: dict[str, TrialResult] = {}
     todo: list[TrialSpec] = []
     for spec in specs:
         path = result_path(out, spec.key)
-        if path.exists():
-            results[spec.key] = TrialResult.load(path)
-            if on_done is not None:
-                on_done(spec, results[spec.key], True)
-        else:
+        if not path.exists():
             todo.append(spec)
-    n_workers = workers if workers is not None else (os.cpu_count() or 1)
-    if n_workers < 1:
-        raise ValueError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
+            continue
+        stored = TrialResult.load(path)
+        if stored.spec != spec_record(spec):
+            raise ValueError(
+                f"{path} holds trial {spec.key!r} run with different settings "
+                f"({stored.spec or 'unknown'}); allowed: the same settings to resume, or another "
+                "output folder (or delete the file) for new ones"
+            )
+        results[spec.key] = stored
+        if on_done is not None:
+            on_done(spec, stored, True)
 
     def finish(spec: TrialSpec, result: TrialResult) -> None:
+        result.spec = spec_record(spec)
         result.save(result_path(out, spec.key))
         results[spec.key] = result
         if on_done is not None:

@@ -362,7 +362,7 @@ def plot(
     import matplotlib.pyplot as plt
 
     written = []
-    if "a_minus_r" in rows[0]:
+    if rows and "a_minus_r" in rows[0]:
         states = [r["state"] for r in rows]
         fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
         axes[0].bar(states, [r["a_minus_r"] for r in rows], color="tab:blue")

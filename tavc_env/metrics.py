@@ -22,15 +22,18 @@ def allocation_segments(
     every robot in each segment (k, n_robots). Changes must be in time order."""
     if t1 <= t0:
         raise ValueError(f"window [{t0}, {t1}) is empty; allowed: t1 > t0")
+    times = [c[0] for c in changes]
+    for k in range(1, len(times)):
+        if times[k] < times[k - 1]:
+            raise ValueError(
+                f"changes are not in time order at time {times[k]} (after {times[k - 1]}); "
+                "allowed: changes sorted by time"
+            )
     current = np.array(initial, dtype=np.int64)
     durations: list[float] = []
     states: list[np.ndarray] = []
     t = t0
-    last_time = -np.inf
     for time_s, robot, circuit in changes:
-        if time_s < last_time:
-            raise ValueError(f"changes are not in time order at time {time_s}")
-        last_time = time_s
         if time_s > t:
             end = min(time_s, t1)
             if end > t:
