@@ -9,18 +9,8 @@ import numpy as np
 from agents.policy import allowed_actions
 
 
-class RandomAllocator:
-    """Uniformly random choice among the allowed circuits: the paper's comparison condition."""
-
-    def __init__(self) -> None:
-        self._rng = np.random.default_rng(0)
-
-    def reset(self, rng: np.random.Generator, n_actions: int) -> None:
-        self._rng = rng
-
-    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
-        allowed = allowed_actions(action_mask)
-        return int(allowed[self._rng.integers(allowed.size)])
+class NonLearning:
+    """Base for allocators that do not learn: `update` does nothing."""
 
     def update(
         self,
@@ -33,7 +23,21 @@ class RandomAllocator:
         return None
 
 
-class FixedAllocator:
+class RandomAllocator(NonLearning):
+    """Uniformly random choice among the allowed circuits: the paper's comparison condition."""
+
+    def __init__(self) -> None:
+        self._rng = np.random.default_rng(0)
+
+    def reset(self, rng: np.random.Generator, n_actions: int) -> None:
+        self._rng = rng
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        allowed = allowed_actions(action_mask)
+        return int(allowed[self._rng.integers(allowed.size)])
+
+
+class FixedAllocator(NonLearning):
     """Always the same circuit (a pre-programmed robot; used for interference and model checks)."""
 
     def __init__(self, circuit: int) -> None:
@@ -54,13 +58,3 @@ class FixedAllocator:
                 "allocator can only be asked when every circuit is allowed"
             )
         return self.circuit
-
-    def update(
-        self,
-        observation: np.ndarray,
-        action: int,
-        reward: float,
-        next_observation: np.ndarray,
-        info: dict[str, Any],
-    ) -> None:
-        return None

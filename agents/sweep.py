@@ -11,11 +11,14 @@ from __future__ import annotations
 import json
 import os
 import re
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
+
+from tqdm import tqdm
 
 from agents.registry import make_policy
 from agents.runner import TrialResult, run_trial
@@ -71,12 +74,29 @@ def run_sweep(
     out_dir: str | Path,
     workers: int | None = None,
     on_done: Callable[[TrialSpec, TrialResult, bool], None] | None = None,
+    progress_bar: bool = False,
 ) -> dict[str, TrialResult]:
     """Run every spec not already finished in `out_dir`; return all results by key.
 
     `workers`: processes (default: all cores; 1 runs in this process). `on_done(spec, result,
     resumed)` is called for each trial as it becomes available (resumed: loaded from disk).
+    `progress_bar`: show a tqdm bar over trials on standard output.
     """
+    if progress_bar:
+        bar = tqdm(total=len(specs), unit="trial", dynamic_ncols=True, file=sys.stdout)
+        user_on_done = on_done
+
+        def on_done(spec: TrialSpec, result: TrialResult, resumed: bool) -> None:
+            bar.update(1)
+            bar.set_postfix_str(f"{spec.key}{' (resumed)' if resumed else ''}")
+            if user_on_done is not None:
+                user_on_done(spec, result, resumed)
+
+        try:
+            return run_sweep(specs, out_dir, workers, on_done)
+        finally:
+            bar.close()
+
     keys = [s.key for s in specs]
     duplicates = sorted({k for k in keys if keys.count(k) > 1})
     if duplicates:

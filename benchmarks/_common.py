@@ -7,6 +7,7 @@ run metadata, and the JSON sidecar the metadata plus any summary the script adds
 
 from __future__ import annotations
 
+import argparse
 import csv
 import datetime as _dt
 import json
@@ -315,6 +316,26 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
         except json.JSONDecodeError:
             overrides[key] = text
     return overrides
+
+
+def add_override_option(parser: argparse.ArgumentParser) -> None:
+    """The `--set KEY=VALUE` option (repeatable) for arena overrides."""
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="arena override for every run, e.g. --set source_service_s=15 or "
+        "--set service_scales_with_speed=true (repeatable)",
+    )
+
+
+def parsed_overrides(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict[str, Any]:
+    """The parsed `--set` overrides, or a usage error naming the bad item."""
+    try:
+        return parse_overrides(args.set)
+    except ValueError as error:
+        parser.error(str(error))
 
 
 def have_matplotlib() -> bool:

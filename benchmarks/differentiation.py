@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -44,9 +43,7 @@ from _common import (
     write_results,
 )
 from table1 import TrialMeasures, measure
-from tqdm import tqdm
 
-from agents.runner import TrialResult
 from agents.sweep import TrialSpec, run_sweep
 
 REGIMES: dict[str, dict[str, Any]] = {
@@ -223,14 +220,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     specs = specs_for(args)
     print(f"{len(specs)} trials; results in {out}", flush=True)
     started = time.perf_counter()
-    bar = tqdm(total=len(specs), unit="trial", dynamic_ncols=True, file=sys.stdout)
-
-    def on_done(spec: TrialSpec, result: TrialResult, resumed: bool) -> None:
-        bar.update(1)
-        bar.set_postfix_str(f"{spec.key}{' (resumed)' if resumed else ''}")
-
-    results = run_sweep(specs, out / "trials", workers=args.workers, on_done=on_done)
-    bar.close()
+    results = run_sweep(specs, out / "trials", workers=args.workers, progress_bar=True)
     wall = time.perf_counter() - started
     groups: dict[tuple[str, str], list[TrialMeasures]] = {}
     for spec in specs:

@@ -55,12 +55,13 @@ import numpy as np
 from _common import (
     RESULTS_DIR,
     CsvAppender,
+    add_override_option,
     bootstrap_ratio_ci,
     fmt_ci,
     have_matplotlib,
     markdown_table,
     mean_ci,
-    parse_overrides,
+    parsed_overrides,
     ratio_ci,
     run_metadata,
     write_results,
@@ -798,18 +799,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--switch-every", type=int, default=3, help="switcher's block length (tasks)")
     p.add_argument("--out", type=Path, default=RESULTS_DIR, help="output directory")
     p.add_argument("--quick", action="store_true", help="smoke run: 2 seeds x 0.12 h")
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="arena override for every run, e.g. --set service_scales_with_speed=true (repeatable)",
-    )
+    add_override_option(p)
     args = p.parse_args(argv)
-    try:
-        args.arena = tuple(sorted(parse_overrides(args.set).items()))
-    except ValueError as error:
-        p.error(str(error))
+    args.arena = tuple(sorted(parsed_overrides(p, args).items()))
     if args.quick:
         args.seeds, args.hours, args.warmup_min, args.skip_first = 2, 0.12, 0.5, 1
     args.workers = max(1, min(args.workers, 2))

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -33,16 +32,16 @@ from typing import Any
 import numpy as np
 from _common import (
     RESULTS_DIR,
+    add_override_option,
     fmt_ci,
     have_matplotlib,
     markdown_table,
     mean_ci,
-    parse_overrides,
+    parsed_overrides,
     ratio_ci,
     run_metadata,
     write_results,
 )
-from tqdm import tqdm
 
 from agents.runner import TrialResult
 from agents.sweep import TrialSpec, run_sweep
@@ -418,13 +417,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
     ap.add_argument("--out", type=Path, default=None, help="output folder")
     ap.add_argument("--quick", action="store_true", help="smoke run: 2 trials of 0.3 + 0.2 hours")
-    ap.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="arena override, e.g. --set source_service_s=15 (repeatable)",
-    )
+    add_override_option(ap)
     args = ap.parse_args(argv)
     if args.quick:
         args.trials, args.convergence_h, args.measured_h = 2, 0.3, 0.2
@@ -437,10 +430,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     unknown = [c for c in chosen if c not in all_conds]
     if unknown:
         ap.error(f"--conditions {unknown} unknown; allowed: {sorted(all_conds)}")
-    try:
-        overrides = parse_overrides(args.set)
-    except ValueError as error:
-        ap.error(str(error))
+    overrides = parsed_overrides(ap, args)
     suffix = "_quick" if args.quick else ""
     out = args.out or RESULTS_DIR / f"table1_{args.preset}_{args.init}{suffix}"
     out.mkdir(parents=True, exist_ok=True)
@@ -465,14 +455,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         flush=True,
     )
     started = time.perf_counter()
-    bar = tqdm(total=len(specs), unit="trial", dynamic_ncols=True, file=sys.stdout)
-
-    def on_done(spec: TrialSpec, result: TrialResult, resumed: bool) -> None:
-        bar.update(1)
-        bar.set_postfix_str(f"{spec.key}{' (resumed)' if resumed else ''}")
-
-    results = run_sweep(specs, out / "trials", workers=args.workers, on_done=on_done)
-    bar.close()
+    results = run_sweep(specs, out / "trials", workers=args.workers, progress_bar=True)
     wall = time.perf_counter() - started
 
     by: dict[str, list[TrialMeasures]] = {c: [] for c in chosen}
