@@ -118,7 +118,13 @@ def metadata_markdown(meta: Mapping[str, Any]) -> str:
         "- Versions: " + ", ".join(f"{k} {val}" for k, val in v.items() if val is not None),
     ]
     if "wall_time_s" in meta:
-        lines.append(f"- Wall time: {meta['wall_time_s']:.1f} s")
+        wall = f"- Wall time: {meta['wall_time_s']:.1f} s"
+        if meta.get("trials_resumed"):
+            wall += (
+                f" ({meta['trials_run']} trials run, {meta['trials_resumed']} resumed from earlier "
+                f"runs; {meta['trial_wall_s_total']:.0f} s of trial time in all)"
+            )
+        lines.append(wall)
     if "settings" in meta:
         settings = ", ".join(f"{k}={val}" for k, val in meta["settings"].items())
         lines.append(f"- Settings: {settings}")
@@ -316,6 +322,34 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
         except json.JSONDecodeError:
             overrides[key] = text
     return overrides
+
+
+def run_trials(
+    specs: Sequence[Any], out_dir: Path, workers: int | None, settings: Mapping[str, Any]
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Run (or resume) a sweep of `agents.sweep.TrialSpec`s with a progress bar; return the
+    results by key and the run metadata, taken before the trials run (the commit they ran from),
+    with the wall time and how many trials were run or resumed."""
+    import time
+
+    from agents.sweep import run_sweep
+
+    meta = run_metadata(settings=dict(settings))
+    resumed: list[str] = []
+
+    def note(spec: Any, result: Any, was_resumed: bool) -> None:
+        if was_resumed:
+            resumed.append(spec.key)
+
+    started = time.perf_counter()
+    results = run_sweep(specs, out_dir, workers=workers, on_done=note, progress_bar=True)
+    meta.update(
+        wall_time_s=time.perf_counter() - started,
+        trials_resumed=len(resumed),
+        trials_run=len(specs) - len(resumed),
+        trial_wall_s_total=sum(r.wall_s for r in results.values()),
+    )
+    return results, meta
 
 
 def add_override_option(parser: argparse.ArgumentParser) -> None:

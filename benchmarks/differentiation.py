@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -39,12 +38,12 @@ from _common import (
     markdown_table,
     mean_ci,
     ratio_ci,
-    run_metadata,
+    run_trials,
     write_results,
 )
 from table1 import TrialMeasures, measure
 
-from agents.sweep import TrialSpec, run_sweep
+from agents.sweep import TrialSpec
 
 REGIMES: dict[str, dict[str, Any]] = {
     "stations": {},
@@ -219,9 +218,21 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     specs = specs_for(args)
     print(f"{len(specs)} trials; results in {out}", flush=True)
-    started = time.perf_counter()
-    results = run_sweep(specs, out / "trials", workers=args.workers, progress_bar=True)
-    wall = time.perf_counter() - started
+    results, meta = run_trials(
+        specs,
+        out / "trials",
+        args.workers,
+        {
+            "regimes": args.regimes,
+            "temperatures": args.temperatures,
+            "trials": args.trials,
+            "convergence_h": args.convergence_h,
+            "measured_h": args.measured_h,
+            "init": args.init,
+            "seed": args.seed,
+        },
+    )
+    wall = meta["wall_time_s"]
     groups: dict[tuple[str, str], list[TrialMeasures]] = {}
     for spec in specs:
         regime, name, _ = spec.key.split("__")
@@ -236,18 +247,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         + ".\n\n"
         + table
         + "\n"
-    )
-    meta = run_metadata(
-        wall_time_s=wall,
-        settings={
-            "regimes": args.regimes,
-            "temperatures": args.temperatures,
-            "trials": args.trials,
-            "convergence_h": args.convergence_h,
-            "measured_h": args.measured_h,
-            "init": args.init,
-            "seed": args.seed,
-        },
     )
     write_results(out, "differentiation", rows, body, meta, "Where differentiation comes from")
     figure = plot(rows, args.temperatures, out) if have_matplotlib() else None

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,12 +38,12 @@ from _common import (
     mean_ci,
     parsed_overrides,
     ratio_ci,
-    run_metadata,
+    run_trials,
     write_results,
 )
 
 from agents.runner import TrialResult
-from agents.sweep import TrialSpec, run_sweep
+from agents.sweep import TrialSpec
 from tavc_env import metrics
 
 # The paper's Table 1 (mu_a, s_a: modified TAVC; mu_r, s_r: random; T: Equation 3).
@@ -454,9 +453,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"simulated hours on {args.preset}; results in {out}",
         flush=True,
     )
-    started = time.perf_counter()
-    results = run_sweep(specs, out / "trials", workers=args.workers, progress_bar=True)
-    wall = time.perf_counter() - started
+    results, meta = run_trials(
+        specs,
+        out / "trials",
+        args.workers,
+        {
+            "preset": args.preset,
+            "trials": args.trials,
+            "convergence_h": args.convergence_h,
+            "measured_h": args.measured_h,
+            "init": args.init,
+            "temperature": args.temperature,
+            "epsilon": args.epsilon,
+            "seed": args.seed,
+            "overrides": overrides,
+        },
+    )
+    wall = meta["wall_time_s"]
 
     by: dict[str, list[TrialMeasures]] = {c: [] for c in chosen}
     for spec in specs:
@@ -489,21 +502,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     sections.append(occupancy_markdown(by, labels))
     body, summary = summary_section(by, labels, heterogeneous)
     sections.append(body)
-    meta = run_metadata(
-        wall_time_s=wall,
-        settings={
-            "preset": args.preset,
-            "trials": args.trials,
-            "convergence_h": args.convergence_h,
-            "measured_h": args.measured_h,
-            "init": args.init,
-            "temperature": args.temperature,
-            "epsilon": args.epsilon,
-            "seed": args.seed,
-            "overrides": overrides,
-        },
-        trial_wall_s_total=sum(r.wall_s for r in results.values()),
-    )
     csv_rows = rows or [
         {
             "condition": c,
