@@ -44,12 +44,9 @@ from _common import (
 from table1 import TrialMeasures, measure
 
 from agents.sweep import TrialSpec
+from tavc_env.config import ARENA_REGIMES
 
-REGIMES: dict[str, dict[str, Any]] = {
-    "stations": {},
-    "competence": {"service_scales_with_speed": True},
-    "light_stations": {"source_service_s": 6.0, "sink_service_s": 2.0},
-}
+REGIMES = ARENA_REGIMES  # also shipped as presets dahl2004, dahl2004_competence, ...
 DEFAULT_TEMPERATURES = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05)
 
 
@@ -60,7 +57,7 @@ def _label(value: float) -> str:
 def specs_for(args: argparse.Namespace) -> list[TrialSpec]:
     specs = []
     for regime in args.regimes:
-        env_kwargs = {"preset": "dahl2004", **REGIMES[regime]}
+        env_kwargs = {"preset": "dahl2004", **dict(REGIMES[regime])}
         runs: list[tuple[str, str, dict[str, Any]]] = [
             (f"softmax_T{_label(t)}", "softmax_tavc", {"temperature": t, "init": args.init})
             for t in args.temperatures

@@ -44,7 +44,7 @@ from _common import (
 
 from agents.runner import TrialResult
 from agents.sweep import TrialSpec
-from tavc_env import metrics
+from tavc_env import PRESETS, metrics
 
 # The paper's Table 1 (mu_a, s_a: modified TAVC; mu_r, s_r: random; T: Equation 3).
 PAPER_TABLE1: dict[tuple[int, int], tuple[float, float, float, float, float]] = {
@@ -402,7 +402,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("--preset", default="dahl2004", choices=["dahl2004", "dahl2004_homogeneous"])
+    ap.add_argument("--preset", default="dahl2004", choices=sorted(PRESETS))
     ap.add_argument("--trials", type=int, default=15, help="trials per condition (default 15)")
     ap.add_argument("--convergence-h", type=float, default=15.0, help="convergence period, hours")
     ap.add_argument("--measured-h", type=float, default=5.0, help="measured stable period, hours")

@@ -355,9 +355,22 @@ def _dahl2004_homogeneous() -> ArenaConfig:
     )
 
 
+# Arena regimes of the differentiation study (README, "Reproducing the paper"): overrides of the
+# `dahl2004` arena, each a physical hypothesis about who yields to whom at the stations.
+ARENA_REGIMES: Mapping[str, Mapping[str, Any]] = {
+    # one-robot docks, 20 s loading and 4 s unloading whatever the robot (the default)
+    "stations": {},
+    # loading and unloading at the robot's own pace: speed as task-processing speed
+    "competence": {"service_scales_with_speed": True},
+    # short docks: little queueing, interference mostly from traffic
+    "light_stations": {"source_service_s": 6.0, "sink_service_s": 2.0},
+}
+
 PRESETS: Mapping[str, Any] = {
     "dahl2004": _dahl2004,
     "dahl2004_homogeneous": _dahl2004_homogeneous,
+    "dahl2004_competence": lambda: _dahl2004().replace(**ARENA_REGIMES["competence"]),
+    "dahl2004_light_stations": lambda: _dahl2004().replace(**ARENA_REGIMES["light_stations"]),
 }
 
 
