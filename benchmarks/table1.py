@@ -106,6 +106,7 @@ class TrialMeasures:
     q_gap_slow: float
     never_updated: float  # mean per robot
     non_greedy_per_hour: float  # mean per robot
+    settled_first_hour: float  # fraction of robots whose last circuit change came in the first hour
 
 
 def measure(result: TrialResult) -> TrialMeasures:
@@ -145,7 +146,17 @@ def measure(result: TrialResult) -> TrialMeasures:
         q_gap_slow=float(np.nanmean(gaps[slow])) if slow.any() and stats else math.nan,
         never_updated=float(np.mean(never)) if never else math.nan,
         non_greedy_per_hour=float(np.mean(non_greedy)) if non_greedy else math.nan,
+        settled_first_hour=settled_within(result, 3600.0),
     )
+
+
+def settled_within(result: TrialResult, horizon_s: float) -> float:
+    """Fraction of robots whose last change of circuit came before `horizon_s` (never changing
+    counts as settled at 0): how early the allocation froze."""
+    last = np.zeros(len(result.agents))
+    for time_s, robot, _ in result.changes:
+        last[robot] = max(last[robot], time_s)
+    return float(np.mean(last < horizon_s))
 
 
 # -- statistics --------------------------------------------------------------------------------
@@ -309,15 +320,21 @@ def summary_section(
         lines.append("")
     rows = []
     for cond, ms in by.items():
+        settled = fmt(100 * np.mean([x.settled_first_hour for x in ms]), 0)
         if math.isfinite(ms[0].never_updated):
             rows.append(
                 [
                     labels[cond],
                     fmt(np.mean([x.never_updated for x in ms]), 2),
                     fmt(np.mean([x.non_greedy_per_hour for x in ms]), 1),
+                    settled,
                 ]
             )
+        else:
+            rows.append([labels[cond], "-", "-", settled])
+        if math.isfinite(ms[0].never_updated):
             summary[f"lockin_{cond}"] = {
+                "settled_in_first_hour": float(np.mean([x.settled_first_hour for x in ms])),
                 "never_updated_entries_per_robot": float(np.mean([x.never_updated for x in ms])),
                 "non_greedy_choices_per_robot_hour": float(
                     np.mean([x.non_greedy_per_hour for x in ms])
@@ -327,7 +344,13 @@ def summary_section(
         lines += ["## Lock-in measures (per robot, mean over trials)", ""]
         lines.append(
             markdown_table(
-                ["condition", "Q entries never updated", "non-greedy choices per hour"], rows
+                [
+                    "condition",
+                    "Q entries never updated",
+                    "non-greedy choices per hour",
+                    "% of robots never changing circuit after hour 1",
+                ],
+                rows,
             )
         )
         lines.append("")
