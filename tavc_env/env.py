@@ -89,23 +89,15 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             max_sim_time_s,
             f"a time >= one physics step ({dt} s), or math.inf",
         )
-        steps = (
-            decision_interval_s / dt
-            if decision_interval_s is not None and is_number(decision_interval_s)
-            else None
-        )
-        require(
-            decision_interval_s is None
-            or (
-                is_number(decision_interval_s)
-                and steps is not None
-                and steps >= 1 - 1e-9
-                and abs(steps - round(steps)) < 1e-6
-            ),
-            "decision_interval_s",
-            decision_interval_s,
-            f"None (event-driven) or a finite whole number of physics steps (multiples of dt = {dt} s)",
-        )
+        if decision_interval_s is not None:
+            steps = decision_interval_s / dt if is_number(decision_interval_s) else 0.0
+            require(
+                steps >= 1 - 1e-9 and abs(steps - round(steps)) < 1e-6,
+                "decision_interval_s",
+                decision_interval_s,
+                "None (event-driven) or a finite whole number of physics steps "
+                f"(multiples of dt = {dt} s)",
+            )
         require(
             reward_time_unit in TIME_UNITS,
             "reward_time_unit",
