@@ -51,6 +51,7 @@ class TrialResult:
     q_snapshots: list[dict[str, Any]] = field(default_factory=list)
     learner_stats: dict[str, dict[str, Any]] = field(default_factory=dict)
     capped_steps: int = 0
+    escapes: int = 0  # stuck robots' escape manoeuvres (navigation.STUCK_PATIENCE_S)
     steps: int = 0
     wall_s: float = 0.0
     spec: dict[str, Any] = field(default_factory=dict)  # the sweep's TrialSpec, when run by one
@@ -206,6 +207,7 @@ def run_trial(
         if progress is not None:
             progress(env.sim.time_s)
     result.end_s = env.sim.time_s
+    result.escapes = env.sim.escapes
     _snapshot(result, table, result.end_s)
     for agent in agents:
         stats = _learner_stats(table[agent])

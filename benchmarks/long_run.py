@@ -39,6 +39,7 @@ from _common import (
 )
 
 import tavc_env
+from tavc_env.navigation import STUCK_PATIENCE_S
 from tavc_env.tasks import PHASE_NAMES, Mode, Phase
 
 MODE_NAMES = {int(m): m.name.lower() for m in Mode}
@@ -213,6 +214,7 @@ def run_seed(seed: int, hours: float, out_dir: str, quiet: bool) -> dict[str, An
         "steps": steps,
         "ticks": env.sim.ticks,
         "capped_steps": len(capped_steps),
+        "escapes": env.sim.escapes,
         "capped_at_s": capped_steps[:20],
         "wall_s": wall,
         "min_dist_m": monitor.min_dist,
@@ -283,6 +285,8 @@ def main(argv: list[str] | None = None) -> int:
         f"at mid-gap near ({worst['gap_mid_x']}, {worst['gap_mid_y']}) {worst['gap_mid_phase']}/"
         f"{worst['gap_mid_mode']}); limit {args.max_gap_min:g} min.",
         f"- Steps that hit the step cap (returned with nobody deciding): {total_capped}.",
+        "- Escape manoeuvres of stuck robots (no progress for "
+        f"{STUCK_PATIENCE_S:g} s): {sum(res['escapes'] for res in results)}.",
         f"- Minimum centre-to-centre distance between robots over "
         f"{sum(res['monitored_ticks'] for res in results)} ticks: {min_dist:.4f} m "
         f"(robot diameter {diameter:.2f} m, i.e. deepest overlap {max(0.0, diameter - min_dist) * 100:.2f} cm); "

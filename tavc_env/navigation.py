@@ -51,6 +51,13 @@ BRAKE_GAP_M = 0.03
 APPROACH_TIME_S = 1.0  # speed near the target is capped at distance / this time
 ARRIVED_M = 0.03  # closer than this to its target a robot holds still
 WALL_RANGE_M = 0.25
+# Escape behaviour (see Simulation): a robot that has not moved STUCK_RADIUS_M in STUCK_PATIENCE_S
+# while away from its target drives ESCAPE_DISTANCE_M away from its neighbours for up to
+# ESCAPE_TIME_S. Reactive controllers can knot in dense crowds; this is the behaviour-based cure.
+STUCK_RADIUS_M = 0.15
+STUCK_PATIENCE_S = 30.0
+ESCAPE_DISTANCE_M = 1.0
+ESCAPE_TIME_S = 4.0
 
 
 def _clip(x: float, lo: float, hi: float) -> float:
@@ -165,6 +172,40 @@ def _arrivals(pos: np.ndarray, target: np.ndarray, trigger: np.ndarray, out: np.
 
 
 arrivals = _compile(_arrivals)
+
+
+def _stuck(
+    pos: np.ndarray,
+    target: np.ndarray,
+    active: np.ndarray,
+    anchor: np.ndarray,
+    anchor_time: np.ndarray,
+    now: float,
+    patience_s: float,
+    out: np.ndarray,
+) -> int:
+    """Robots making no progress: write into `out` every active robot, away from its target, that
+    has stayed within `STUCK_RADIUS_M` of its anchor for `patience_s`; return how many. Anchors
+    (position and time) follow each robot whenever it moves further than that, or is inactive or
+    at its target."""
+    k = 0
+    for i in range(pos.shape[0]):
+        dx = pos[i, 0] - anchor[i, 0]
+        dy = pos[i, 1] - anchor[i, 1]
+        tx = target[i, 0] - pos[i, 0]
+        ty = target[i, 1] - pos[i, 1]
+        waiting = (not active[i]) or tx * tx + ty * ty <= STUCK_RADIUS_M * STUCK_RADIUS_M
+        if waiting or dx * dx + dy * dy > STUCK_RADIUS_M * STUCK_RADIUS_M:
+            anchor[i, 0] = pos[i, 0]
+            anchor[i, 1] = pos[i, 1]
+            anchor_time[i] = now
+        elif now - anchor_time[i] >= patience_s:
+            out[k] = i
+            k += 1
+    return k
+
+
+stuck = _compile(_stuck)
 
 
 @dataclass(frozen=True)

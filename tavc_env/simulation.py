@@ -12,7 +12,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tavc_env.config import ArenaConfig
-from tavc_env.navigation import Navigator, arrivals
+from tavc_env.navigation import (
+    ESCAPE_DISTANCE_M,
+    ESCAPE_TIME_S,
+    STUCK_PATIENCE_S,
+    Navigator,
+    arrivals,
+    stuck,
+)
 from tavc_env.tasks import Completion, Mode, Phase, TaskCycle
 from tavc_env.world import World
 
@@ -42,6 +49,11 @@ class Simulation:
         self.heading = np.zeros(n)
         self._pos = np.zeros((n, 2))  # positions after the last physics step
         self._hits = np.zeros(n, dtype=np.int64)
+        self._anchor = np.zeros((n, 2))  # where each robot last made progress ...
+        self._anchor_time = np.zeros(n)  # ... and when
+        self._escape_until = np.zeros(n)  # end of a robot's escape manoeuvre (0: none)
+        self._escape_target = np.zeros((n, 2))
+        self.escapes = 0  # escape manoeuvres started since reset
         self.time_s = 0.0
         self.ticks = 0
         self.rng = np.random.default_rng(0)
@@ -71,6 +83,10 @@ class Simulation:
             self.tasks.start(int(i), c)
         self.world.place(positions)
         self._pos = self.world.positions()
+        self._anchor = self._pos.copy()
+        self._anchor_time = np.zeros(n)
+        self._escape_until = np.zeros(n)
+        self.escapes = 0
         self.heading = rng.uniform(-math.pi, math.pi, size=n)
         self.speed_factor = np.ones(n)
         self.top_speed = self.speeds.copy()
@@ -135,8 +151,13 @@ class Simulation:
     def _tick(self, out: Advance) -> None:
         dt = self.config.dt
         tasks = self.tasks
+        target = tasks.target
+        if self.escapes and self._escape_until.max() > self.time_s:
+            target = np.where(
+                (self._escape_until > self.time_s)[:, None], self._escape_target, tasks.target
+            )
         cmd = self.nav.command(
-            self._pos, self.heading, tasks.target, tasks.moving, self.top_speed, self.world.in_space
+            self._pos, self.heading, target, tasks.moving, self.top_speed, self.world.in_space
         )
         self.heading = cmd.heading
         self.world.set_velocities(cmd.velocity)
@@ -157,6 +178,43 @@ class Simulation:
             tasks.arrive(int(self._hits[k]), now)
         if self._schedule and self._schedule[0][0] <= now + 1e-9:
             self._run_schedule(now, out)
+        active = tasks.moving & self.world.in_space
+        for k in range(
+            stuck(
+                self._pos,
+                tasks.target,
+                active,
+                self._anchor,
+                self._anchor_time,
+                now,
+                STUCK_PATIENCE_S,
+                self._hits,
+            )
+        ):
+            self._escape(int(self._hits[k]), now)
+
+    def _escape(self, robot: int, now: float) -> None:
+        """Start robot's escape: away from the robots around it, in a direction jittered by the
+        rng so that knotted robots do not all pick mirror-image moves."""
+        pos = self._pos
+        others = np.flatnonzero(self.world.in_space)
+        others = others[others != robot]
+        offsets = pos[robot] - pos[others]
+        dist = np.hypot(offsets[:, 0], offsets[:, 1])
+        near = dist < 1.5
+        away = (offsets[near] / np.maximum(dist[near], 1e-9)[:, None]).sum(axis=0)
+        angle = math.atan2(away[1], away[0]) if np.any(away) else 0.0
+        angle += self.rng.uniform(-math.pi / 2, math.pi / 2)
+        cfg = self.config
+        margin = cfg.robot_radius + 0.3
+        goal = pos[robot] + ESCAPE_DISTANCE_M * np.array([math.cos(angle), math.sin(angle)])
+        self._escape_target[robot] = np.clip(
+            goal, [margin, margin], [cfg.width - margin, cfg.height - margin]
+        )
+        self._escape_until[robot] = now + ESCAPE_TIME_S
+        self._anchor[robot] = pos[robot]
+        self._anchor_time[robot] = now + ESCAPE_TIME_S
+        self.escapes += 1
 
     def _run_schedule(self, now: float, out: Advance) -> None:
         while self._schedule and self._schedule[0][0] <= now + 1e-9:

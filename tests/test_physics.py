@@ -354,3 +354,34 @@ def test_manual_breakdown_is_not_ended_by_a_stale_scheduled_repair() -> None:
     go(250.0)
     env.break_down("robot_0")
     assert go(700.0)["robot_0"]["broken"]
+
+
+def test_a_knot_of_robots_is_dissolved_by_the_escape_behaviour() -> None:
+    """Regression: with instant loading and unloading, six robots on one circuit once knotted
+    below a dock for good (epsilon TAVC, seed 2: deliveries stopped at 5621 s). Stuck robots now
+    back away after STUCK_PATIENCE_S, so everyone keeps delivering to the end."""
+    from agents.registry import make_policy
+    from agents.runner import run_trial
+
+    result = run_trial(
+        lambda agent: make_policy("epsilon_tavc", epsilon=0.1, init="scaled"),
+        seed=2,
+        convergence_s=6000.0,
+        measured_s=1200.0,
+        preset="dahl2004",
+        source_service_s=0.0,
+        sink_service_s=0.0,
+    )
+    times = np.array(result.delivery_time_s)
+    robots = np.array(result.delivery_robot)
+    assert result.escapes > 0
+    for i in range(6):
+        assert np.any(times[robots == i] > 6000.0), f"robot {i} stopped delivering"
+
+
+def test_the_escape_behaviour_never_fires_in_the_default_arena() -> None:
+    """In the default arena robots wait in lines, not in knots: an hour of random choices needs no
+    escape, so the escape behaviour leaves every default trajectory as it was."""
+    env = tavc_env.parallel_env(preset="dahl2004", max_sim_time_s=3600.0)
+    run_env(env, 10_000, seed=5)
+    assert env.sim.escapes == 0
