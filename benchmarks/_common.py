@@ -76,7 +76,8 @@ def _git(*args: str) -> str | None:
 def run_metadata(**extra: Any) -> dict[str, Any]:
     """Machine, software versions, git state, UTC time and the exact command line of this run."""
     commit = _git("rev-parse", "HEAD")
-    status = _git("status", "--porcelain")
+    # Dirty means changed code or docs; result files written by this or a concurrent run do not count.
+    status = _git("status", "--porcelain", "--", ".", ":(exclude)benchmarks/results")
     meta: dict[str, Any] = {
         "timestamp_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "command": " ".join([Path(sys.executable).name, *sys.argv]),
