@@ -16,9 +16,10 @@ from typing import Any
 import numpy as np
 
 from tavc_env._validation import is_integer, is_number, require
-from tavc_env.layout import waiting_slots
+from tavc_env.layout import WALL_CLEARANCE_M, waiting_slots
 
 Point = tuple[float, float]
+MAX_SPEED_M_S = 2.0  # a Pioneer-sized robot; far above the 0.2-0.3 m/s of the paper
 
 
 def _point(name: str, value: object) -> Point:
@@ -70,10 +71,10 @@ class Robot:
 
     def __post_init__(self) -> None:
         require(
-            is_number(self.speed) and 0 < self.speed <= 2.0,
+            is_number(self.speed) and 0 < self.speed <= MAX_SPEED_M_S,
             "robot.speed",
             self.speed,
-            "a finite speed in (0, 2] m/s",
+            f"a finite speed in (0, {MAX_SPEED_M_S:g}] m/s",
         )
 
 
@@ -212,17 +213,12 @@ class ArenaConfig:
             require(isinstance(c, Circuit), f"circuits[{i}]", c, "a tavc_env.Circuit")
         for i, r in enumerate(self.robots):
             require(isinstance(r, Robot), f"robots[{i}]", r, "a tavc_env.Robot")
-        margin = self.robot_radius + 0.05
+        margin = self.robot_radius + WALL_CLEARANCE_M
         inside = f"x in [{margin}, {self.width - margin}], y in [{margin}, {self.height - margin}]"
-        stations: list[tuple[str, Point]] = []
-        for i, c in enumerate(self.circuits):
-            for kind, p in (("source", c.source), ("sink", c.sink)):
-                name = f"circuits[{i}].{kind}"
-                ok = (
-                    margin <= p[0] <= self.width - margin and margin <= p[1] <= self.height - margin
-                )
-                require(ok, name, p, f"a point inside the arena: {inside}")
-                stations.append((name, p))
+        stations = [(name, p) for name, p, _ in self.stations()]
+        for name, p in stations:
+            ok = margin <= p[0] <= self.width - margin and margin <= p[1] <= self.height - margin
+            require(ok, name, p, f"a point inside the arena: {inside}")
         # Two docks closer than two robot diameters would make one robot's service block the other
         # station, so the circuits would not be separate task classes.
         min_gap = 4 * self.robot_radius
@@ -430,7 +426,10 @@ def robots_from_speeds(speeds: Sequence[float]) -> tuple[Robot, ...]:
     )
     for i, speed in enumerate(speeds):
         require(
-            is_number(speed) and 0 < speed <= 2.0, f"speeds[{i}]", speed, "a speed in (0, 2] m/s"
+            is_number(speed) and 0 < speed <= MAX_SPEED_M_S,
+            f"speeds[{i}]",
+            speed,
+            f"a speed in (0, {MAX_SPEED_M_S:g}] m/s",
         )
     mean = sum(speeds) / len(speeds)
     labels = [

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 
 MAX_ROWS = 100
+WALL_CLEARANCE_M = 0.05  # a dock or waiting slot keeps a robot this far off the walls
 
 
 def waiting_slots(
@@ -32,7 +33,7 @@ def waiting_slots(
     least `spacing` nearer its own dock than any other dock, so waiting robots of different
     stations stay at least one spacing apart. Returns fewer than `count` slots if no more fit.
     """
-    margin = radius + 0.05  # as for docks: a robot there clears the wall
+    margin = radius + WALL_CLEARANCE_M
     lo = np.array([margin, margin])
     hi = np.array([width - margin, height - margin])
     base = np.asarray(dock, dtype=float)
