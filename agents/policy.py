@@ -7,6 +7,7 @@ or the simulator.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -50,3 +51,24 @@ def allowed_actions(action_mask: np.ndarray) -> np.ndarray:
 def state_of(observation: np.ndarray) -> int:
     """The tabular state of the paper's observation: the index of the last circuit."""
     return int(np.argmax(observation))
+
+
+@runtime_checkable
+class Team(Protocol):
+    """A centralised (or communicating) allocator: it makes every robot's policy for a trial and,
+    through `observe`, sees what the environment publicly reports about every robot.
+
+    This is the documented channel through which coordination-based baselines get their
+    information: the info dicts of all robots after each step (circuit, phase, broken, task times)
+    and the circuits' current values, never the simulator's internals. The trial runner calls
+    `policies` once per trial, then `observe` after `reset`, after each step and after each
+    scheduled event, always before any robot acts.
+    """
+
+    def policies(self, agents: list[str], config: Any) -> dict[str, Policy]:
+        """One policy per agent for a trial in the arena `config` (an `ArenaConfig`)."""
+
+    def observe(
+        self, infos: Mapping[str, Mapping[str, Any]], circuit_values: Sequence[float]
+    ) -> None:
+        """What every robot's info says now, and the value of each circuit now."""

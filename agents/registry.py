@@ -1,7 +1,9 @@
 """Allocators by name, so a trial can be described by plain data (and rebuilt in a worker process).
 
-Each entry makes the policy for one agent. Parameters are given as keyword arguments in the trial
-description, e.g. `("softmax_tavc", {"temperature": 0.01, "init": "paper"})`.
+Per-robot allocators (`POLICIES`) make one independent policy per robot; team allocators (`TEAMS`)
+make one `agents.policy.Team` per trial, which coordinates its robots. Parameters are keyword
+arguments in the trial description, e.g. `("softmax_tavc", {"temperature": 0.01, "init": "paper"})`
+or `("greedy", {"model": model.to_dict()})`.
 """
 
 from __future__ import annotations
@@ -9,19 +11,46 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from agents.baselines import RandomAllocator
-from agents.policy import Policy
+from agents.baselines import FixedAllocator, RandomAllocator
+from agents.market import AuctionAllocator
+from agents.policy import Policy, Team
 from agents.tavc import epsilon_tavc, softmax_tavc
+from agents.teams import GreedyAllocator, StaticAllocator
+from agents.threshold import ResponseThresholdAllocator
 
-ALLOCATORS: Mapping[str, Callable[..., Policy]] = {
+POLICIES: Mapping[str, Callable[..., Policy]] = {
     "softmax_tavc": softmax_tavc,
     "epsilon_tavc": epsilon_tavc,
     "random": RandomAllocator,
+    "fixed": FixedAllocator,
 }
+
+TEAMS: Mapping[str, Callable[..., Team]] = {
+    "static": StaticAllocator,
+    "greedy": GreedyAllocator,
+    "auction": AuctionAllocator,
+    "response_threshold": ResponseThresholdAllocator,
+}
+
+ALLOCATORS = sorted({*POLICIES, *TEAMS})
 
 
 def make_policy(name: str, **params: Any) -> Policy:
-    """A fresh policy of the named allocator."""
-    if name not in ALLOCATORS:
-        raise ValueError(f"allocator {name!r} is unknown; allowed: {sorted(ALLOCATORS)}")
-    return ALLOCATORS[name](**params)
+    """A fresh policy of the named per-robot allocator."""
+    if name not in POLICIES:
+        hint = " (a team allocator: use make_allocator)" if name in TEAMS else ""
+        raise ValueError(
+            f"allocator {name!r} is not a per-robot policy{hint}; allowed: {sorted(POLICIES)}"
+        )
+    return POLICIES[name](**params)
+
+
+def make_allocator(name: str, **params: Any) -> Callable[[str], Policy] | Team:
+    """What `agents.runner.run_trial` takes for the named allocator: a `Team`, or a factory
+    making a fresh per-robot policy for each agent."""
+    if name in TEAMS:
+        return TEAMS[name](**params)
+    if name not in POLICIES:
+        raise ValueError(f"allocator {name!r} is unknown; allowed: {ALLOCATORS}")
+    make_policy(name, **params)  # bad parameters fail here, before the trial starts
+    return lambda agent: make_policy(name, **params)

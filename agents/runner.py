@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,10 +22,48 @@ from typing import Any
 import numpy as np
 
 import tavc_env
-from agents.policy import Policy
-from tavc_env._validation import is_number, require
+from agents.policy import Policy, Team
+from tavc_env._validation import is_integer, is_number, require
 
 PolicyFactory = Callable[[str], Policy]
+EVENT_KINDS = ("break_down", "repair", "set_values")
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something done to the arena during a trial at `at_s` simulated seconds: robot `robot` breaks
+    down or is repaired, or the circuits' values become `values` (a priority change).
+
+    The runner applies it at the first step boundary at or after `at_s` (event-driven steps end
+    whenever some robot completes a task, every few seconds with six robots) and records the time
+    it was applied.
+    """
+
+    at_s: float
+    kind: str
+    robot: int | None = None
+    values: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        require(is_number(self.at_s) and self.at_s >= 0, "event.at_s", self.at_s, "a time >= 0 s")
+        require(self.kind in EVENT_KINDS, "event.kind", self.kind, f"one of {list(EVENT_KINDS)}")
+        if self.kind == "set_values":
+            require(
+                self.values is not None and self.robot is None,
+                "event.values",
+                self.values,
+                "the new circuit values (and no robot) for set_values",
+            )
+            assert self.values is not None
+            object.__setattr__(self, "values", tuple(float(w) for w in self.values))
+        else:
+            require(
+                is_integer(self.robot) and self.robot is not None and self.robot >= 0,
+                "event.robot",
+                self.robot,
+                f"a robot index >= 0 for {self.kind} (and no values)",
+            )
+            require(self.values is None, "event.values", self.values, f"None for {self.kind}")
 
 
 @dataclass
@@ -48,6 +86,8 @@ class TrialResult:
     delivery_robot: list[int] = field(default_factory=list)
     delivery_circuit: list[int] = field(default_factory=list)
     delivery_task_time_s: list[float] = field(default_factory=list)
+    delivery_value: list[float] = field(default_factory=list)  # w of the circuit when delivered
+    events: list[tuple[float, str, Any]] = field(default_factory=list)  # (applied at, kind, arg)
     q_snapshots: list[dict[str, Any]] = field(default_factory=list)
     learner_stats: dict[str, dict[str, Any]] = field(default_factory=dict)
     capped_steps: int = 0
@@ -67,6 +107,7 @@ class TrialResult:
     def from_dict(cls, data: Mapping[str, Any]) -> TrialResult:
         d = dict(data)
         d["changes"] = [tuple(c) for c in d.get("changes", [])]
+        d["events"] = [tuple(e) for e in d.get("events", [])]
         return cls(**d)
 
     def save(self, path: str | Path) -> None:
@@ -92,7 +133,7 @@ def _jsonable(value: Any) -> Any:
 
 
 def run_trial(
-    policies: Mapping[str, Policy] | PolicyFactory,
+    policies: Mapping[str, Policy] | PolicyFactory | Team,
     *,
     seed: int,
     convergence_s: float = 15 * 3600.0,
@@ -100,11 +141,14 @@ def run_trial(
     snapshot_every_s: float = 3600.0,
     label: str = "",
     progress: Callable[[float], None] | None = None,
+    events: Sequence[Event] = (),
     **env_kwargs: Any,
 ) -> TrialResult:
     """Run one trial and return what it recorded.
 
-    `policies` maps every agent name to its policy, or is a factory called with each agent name.
+    `policies` maps every agent name to its policy, or is a factory called with each agent name,
+    or is a `Team` (a centralised allocator, which also observes every robot's info each step).
+    `events` (breakdowns, repairs, priority changes) are applied at their times.
     `env_kwargs` go to `tavc_env.parallel_env` (e.g. `preset="dahl2004"`, config overrides);
     `max_sim_time_s` is set from the two periods. `progress`, if given, is called with the
     simulated time after each step.
@@ -133,9 +177,17 @@ def run_trial(
     total = float(convergence_s + measured_s)
     env = tavc_env.parallel_env(max_sim_time_s=total, max_cycles=10**9, **env_kwargs)
     agents = list(env.possible_agents)
-    if callable(policies) and not isinstance(policies, Mapping):
-        table: dict[str, Policy] = {a: policies(a) for a in agents}
+    for event in events:
+        require(isinstance(event, Event), "event", event, "an agents.runner.Event")
+        if event.robot is not None:
+            require(event.robot < len(agents), "event.robot", event.robot, f"< {len(agents)}")
+    team = policies if isinstance(policies, Team) else None
+    if team is not None:
+        table: dict[str, Policy] = team.policies(list(agents), env.config)
+    elif callable(policies) and not isinstance(policies, Mapping):
+        table = {a: policies(a) for a in agents}
     else:
+        assert isinstance(policies, Mapping)
         missing = sorted(set(agents) - set(policies))
         extra = sorted(set(policies) - set(agents))
         if missing or extra:
@@ -171,8 +223,13 @@ def run_trial(
     pending: dict[str, tuple[np.ndarray, int]] = {}
     rewards: dict[str, float] = {}
     next_snapshot = 0.0
+    schedule = sorted(events, key=lambda e: e.at_s)
     while env.agents:
         now = infos[agents[0]]["sim_time_s"]
+        while schedule and schedule[0].at_s <= now + 1e-9:
+            infos = _apply(env, schedule.pop(0), infos, result, now)
+        if team is not None:
+            team.observe(infos, env.circuit_values)
         if now >= next_snapshot:
             _snapshot(result, table, now)
             next_snapshot += snapshot_every_s
@@ -204,6 +261,7 @@ def run_trial(
                 result.delivery_robot.append(i)
                 result.delivery_circuit.append(infos[agent]["circuit"])
                 result.delivery_task_time_s.append(t)
+                result.delivery_value.append(env.circuit_values[infos[agent]["circuit"]])
         if progress is not None:
             progress(env.sim.time_s)
     result.end_s = env.sim.time_s
@@ -215,6 +273,27 @@ def run_trial(
             result.learner_stats[agent] = stats
     result.wall_s = time.perf_counter() - started
     return result
+
+
+def _apply(
+    env: Any, event: Event, infos: dict[str, dict[str, Any]], result: TrialResult, now: float
+) -> dict[str, dict[str, Any]]:
+    """Apply `event` to `env`; return the infos as they now stand (a robot that breaks down no
+    longer has to decide)."""
+    if event.kind == "set_values":
+        env.set_circuit_values(event.values)
+        result.events.append((now, event.kind, list(event.values or ())))
+        return infos
+    assert event.robot is not None
+    agent = env.possible_agents[event.robot]
+    if event.kind == "break_down":
+        env.break_down(agent)
+        infos = {**infos, agent: {**infos[agent], "action_required": False, "broken": True}}
+        infos[agent]["phase"] = "broken"
+    else:
+        env.repair(agent)
+    result.events.append((now, event.kind, event.robot))
+    return infos
 
 
 def _snapshot(result: TrialResult, table: Mapping[str, Policy], now: float) -> None:

@@ -20,8 +20,8 @@ from typing import Any
 
 from tqdm import tqdm
 
-from agents.registry import make_policy
-from agents.runner import TrialResult, run_trial
+from agents.registry import make_allocator
+from agents.runner import Event, TrialResult, run_trial
 
 _KEY = re.compile(r"^[A-Za-z0-9_.=-]+$")
 
@@ -38,6 +38,7 @@ class TrialSpec:
     convergence_s: float = 15 * 3600.0
     measured_s: float = 5 * 3600.0
     snapshot_every_s: float = 3600.0
+    events: tuple[Event, ...] = ()
 
     def __post_init__(self) -> None:
         if not _KEY.match(self.key):
@@ -49,12 +50,13 @@ class TrialSpec:
 def run_spec(spec: TrialSpec) -> TrialResult:
     """Run one trial described by `spec` (in whatever process calls it)."""
     return run_trial(
-        lambda agent: make_policy(spec.allocator, **spec.allocator_kwargs),
+        make_allocator(spec.allocator, **spec.allocator_kwargs),
         seed=spec.seed,
         convergence_s=spec.convergence_s,
         measured_s=spec.measured_s,
         snapshot_every_s=spec.snapshot_every_s,
         label=spec.key,
+        events=spec.events,
         **dict(spec.env_kwargs),
     )
 
@@ -66,6 +68,8 @@ def result_path(out_dir: Path, key: str) -> Path:
 def spec_record(spec: TrialSpec) -> dict[str, Any]:
     """The spec as plain JSON data (what a saved result is checked against on resume)."""
     data: dict[str, Any] = json.loads(json.dumps(asdict(spec), default=repr))
+    if not data["events"]:
+        del data["events"]  # trials saved before events existed had none; they still resume
     return data
 
 

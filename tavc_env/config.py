@@ -351,6 +351,19 @@ def _dahl2004_homogeneous() -> ArenaConfig:
     )
 
 
+def _three_circuits_three_classes() -> ArenaConfig:
+    """A harder allocation problem than the paper's: three circuits of values 2200 / 2000 / 1800 in
+    a 21 x 8 m arena (lanes 9 m apart, as in `dahl2004`), nine robots in three speed classes
+    (three each at 0.30, 0.25 and 0.20 m/s)."""
+    speeds = (0.30, 0.25, 0.20)
+    labels = ("fast", "medium", "slow")
+    return ArenaConfig(
+        width=21.0,
+        circuits=lane_circuits(3, width=21.0, values=(2200.0, 2000.0, 1800.0)),
+        robots=tuple(Robot(v, label) for v, label in zip(speeds, labels) for _ in range(3)),
+    )
+
+
 # Arena regimes of the differentiation study (README, "Reproducing the paper"): overrides of the
 # `dahl2004` arena, each a physical hypothesis about who yields to whom at the stations.
 ARENA_REGIMES: Mapping[str, Mapping[str, Any]] = {
@@ -365,6 +378,7 @@ ARENA_REGIMES: Mapping[str, Mapping[str, Any]] = {
 PRESETS: Mapping[str, Any] = {
     "dahl2004": _dahl2004,
     "dahl2004_homogeneous": _dahl2004_homogeneous,
+    "three_circuits_three_classes": _three_circuits_three_classes,
     "dahl2004_competence": lambda: _dahl2004().replace(**ARENA_REGIMES["competence"]),
     "dahl2004_light_stations": lambda: _dahl2004().replace(**ARENA_REGIMES["light_stations"]),
 }

@@ -253,6 +253,24 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         require(self.sim.broken()[i], "agent", name, "a robot that is broken")
         self.sim.schedule_repair(i)
 
+    # -- task priorities -----------------------------------------------------------------------
+    @property
+    def circuit_values(self) -> tuple[float, ...]:
+        """The value `w_i` a delivery on each circuit earns now."""
+        return tuple(float(w) for w in self.sim.tasks.values)
+
+    def set_circuit_values(self, values: Any) -> None:
+        """Change the circuits' values from now on (a priority change): deliveries completed after
+        this call are paid `w_i / t` with the new `w_i`. `reset` restores the configured values."""
+        m = self.config.n_circuits
+        ok = (
+            isinstance(values, (list, tuple, np.ndarray))
+            and len(values) == m
+            and all(is_number(w) and w > 0 for w in values)
+        )
+        require(ok, "circuit values", values, f"a sequence of {m} finite values > 0")
+        self.sim.tasks.values = np.array([float(w) for w in values])
+
     # -- helpers -------------------------------------------------------------------------------
     def _agent_index(self, agent: object, what: str) -> tuple[int, str]:
         if not isinstance(agent, str) or agent not in self._index:

@@ -22,7 +22,7 @@ import pytest
 
 from agents.baselines import FixedAllocator, RandomAllocator
 from agents.policy import Policy, allowed_actions, state_of
-from agents.registry import ALLOCATORS, make_policy
+from agents.registry import ALLOCATORS, make_allocator, make_policy
 from agents.selection import EpsilonGreedy, Softmax, sample
 from agents.tavc import TavcLearner, TavcParams, epsilon_tavc, softmax_tavc
 
@@ -470,7 +470,16 @@ def test_policy_protocol_and_helpers() -> None:
 
 
 def test_registry_builds_configured_policies() -> None:
-    assert set(ALLOCATORS) == {"softmax_tavc", "epsilon_tavc", "random"}
+    assert set(ALLOCATORS) == {
+        "softmax_tavc",
+        "epsilon_tavc",
+        "random",
+        "fixed",
+        "static",
+        "greedy",
+        "auction",
+        "response_threshold",
+    }
     soft = make_policy("softmax_tavc", temperature=0.01, init="paper")
     assert isinstance(soft, TavcLearner)
     assert soft.selection == Softmax(temperature=0.01)
@@ -483,8 +492,10 @@ def test_registry_builds_configured_policies() -> None:
     assert isinstance(make_policy("random"), RandomAllocator)
     # each call makes a fresh policy (robots must not share a Q-table)
     assert make_policy("softmax_tavc") is not make_policy("softmax_tavc")
-    with pytest.raises(ValueError, match=r"allocator 'greedy' is unknown; allowed: \["):
+    with pytest.raises(ValueError, match=r"'greedy' is not a per-robot policy \(a team"):
         make_policy("greedy")
+    with pytest.raises(ValueError, match=r"allocator 'nope' is unknown; allowed: \["):
+        make_allocator("nope")
 
 
 def test_default_constructors_use_the_papers_selection_parameters() -> None:
