@@ -32,6 +32,13 @@ def auction(bids: np.ndarray, places: Sequence[int], epsilon: float) -> list[int
     the result is deterministic.
     """
     bids = np.asarray(bids, dtype=float)
+    require(
+        bids.ndim == 2 and bids.shape[1] == len(places),
+        "bids.shape",
+        bids.shape,
+        f"(robots, {len(places)}): one bid per robot and circuit",
+    )
+    require(bool(np.all(np.isfinite(bids))), "bids", bids.tolist(), "finite numbers")
     n_robots = bids.shape[0]
     owner_circuit = [c for c, k in enumerate(places) for _ in range(k)]
     require(
@@ -43,22 +50,22 @@ def auction(bids: np.ndarray, places: Sequence[int], epsilon: float) -> list[int
     require(is_number(epsilon) and epsilon > 0, "epsilon", epsilon, "a number > 0")
     if n_robots == 0:
         return []
-    value = bids[:, owner_circuit]  # robots x places
+    # Places nobody fills keep the prices raised in earlier rounds and would repel bidders, so
+    # every place gets a bidder: dummies bidding nothing take the ones left over.
+    value = np.zeros((len(owner_circuit), len(owner_circuit)))
+    value[:n_robots] = bids[:, owner_circuit]  # bidders x places
     price = np.zeros(len(owner_circuit))
     step = max(float(np.ptp(value)), epsilon)
     while True:
         step = max(step / 8.0, epsilon)
-        assigned = [-1] * n_robots
+        assigned = [-1] * len(owner_circuit)
         owner = [-1] * len(owner_circuit)
-        queue = list(range(n_robots))
+        queue = list(range(len(owner_circuit)))
         while queue:
             r = queue.pop(0)
             net = value[r] - price
             best = int(np.argmax(net))
-            if net.size > 1:
-                second = float(np.max(np.delete(net, best)))
-            else:
-                second = float(net[best])
+            second = float(np.max(np.delete(net, best))) if net.size > 1 else float(net[best])
             price[best] += net[best] - second + step
             if owner[best] >= 0:
                 assigned[owner[best]] = -1
@@ -66,7 +73,7 @@ def auction(bids: np.ndarray, places: Sequence[int], epsilon: float) -> list[int
             owner[best] = r
             assigned[r] = best
         if step <= epsilon:
-            return [owner_circuit[p] for p in assigned]
+            return [owner_circuit[p] for p in assigned[:n_robots]]
 
 
 class AuctionAllocator(TeamAllocator):

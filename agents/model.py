@@ -100,18 +100,11 @@ class CompletionModel:
         rates = np.asarray(self.rates, dtype=float)
         shape = (len(self.values), *(n + 1 for n in self.team))
         require(rates.shape == shape, "rates.shape", rates.shape, f"{shape} (circuit, counts...)")
+        bad = rates[~(np.isfinite(rates) & (rates >= 0))]
+        require(bad.size == 0, "rates", bad[:1].tolist(), "finite frequencies >= 0")
+        empty = rates.reshape(len(self.values), -1)[:, 0]  # every class count 0
         require(
-            bool(np.all(np.isfinite(rates)) and np.all(rates >= 0)),
-            "rates",
-            rates.min() if rates.size else rates,
-            "finite frequencies >= 0",
-        )
-        empty = (slice(None), *(0 for _ in self.team))
-        require(
-            bool(np.all(rates[empty] == 0)),
-            "rates of the empty group",
-            rates[empty].tolist(),
-            "0 (no robot, no task)",
+            bool(np.all(empty == 0)), "rates of the empty group", empty.tolist(), "0 (no robot)"
         )
         rates.setflags(write=False)
         object.__setattr__(self, "rates", rates)
@@ -133,7 +126,8 @@ class CompletionModel:
     # -- Equation 1 and the team's value --------------------------------------------------------
     def rate(self, circuit: int, group: Sequence[int]) -> float:
         """c_{i,J}: tasks per second of `group` on `circuit`."""
-        return float(self.rates[(circuit, *self._group(group))])
+        index = (circuit, *self._group(group))
+        return float(self.rates[index])
 
     def slot_value(self, circuit: int, group: Sequence[int], cls: int) -> float:
         """s_{i,J,j} = w_i (c_{i,J+j} - c_{i,J}) (Equation 1), in value per second."""
@@ -158,9 +152,7 @@ class CompletionModel:
         counts = self._team(team)
         per_class = [list(_splits(n, self.n_circuits)) for n in counts]
         for choice in itertools.product(*per_class):
-            yield tuple(
-                tuple(split[i] for split in choice) for i in range(self.n_circuits)
-            )
+            yield tuple(tuple(split[i] for split in choice) for i in range(self.n_circuits))
 
     def ranked(self, team: Sequence[int] | None = None) -> list[tuple[float, Allocation]]:
         """Every allocation of `team` with its value rate, best first (ties: lexicographic)."""
@@ -272,6 +264,13 @@ class CompletionModel:
             allocation,
             f"one group per circuit ({self.n_circuits})",
         )
+        for g in allocation:
+            require(
+                len(g) == len(self.team),
+                "allocation group",
+                g,
+                f"one count per class {list(self.classes)}",
+            )
         totals = [sum(g[k] for g in allocation) for k in range(len(self.team))]
         require(
             all(t <= m for t, m in zip(totals, self.team)),
@@ -291,6 +290,20 @@ def _splits(n: int, parts: int) -> Iterator[tuple[int, ...]]:
     for first in range(n, -1, -1):
         for rest in _splits(n - first, parts - 1):
             yield (first, *rest)
+
+
+def allocation_of(
+    circuits: Sequence[int],
+    classes: SpeedClasses,
+    n_circuits: int,
+    working: Sequence[bool] | None = None,
+) -> Allocation:
+    """The groups per circuit when robot r serves `circuits[r]` (robots not `working` left out)."""
+    groups = [[0] * len(classes.labels) for _ in range(n_circuits)]
+    for r, (circuit, k) in enumerate(zip(circuits, classes.of_robot)):
+        if working is None or working[r]:
+            groups[int(circuit)][k] += 1
+    return tuple(tuple(g) for g in groups)
 
 
 def fs_label(allocation: Allocation, circuit: int = 0) -> str:
@@ -369,8 +382,12 @@ def model_from_runs(
         if sum(index[1:]) == 0:
             continue
         values = samples.get(index)
-        require(values is not None, "runs", f"no run of group {index[1:]} on circuit {index[0]}",
-                "a run of every non-empty group on every circuit")
+        require(
+            values is not None,
+            "runs",
+            f"no run of group {index[1:]} on circuit {index[0]}",
+            "a run of every non-empty group on every circuit",
+        )
         assert values is not None
         rates[index] = float(np.mean(values))
         se[index] = float(np.std(values, ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0
@@ -414,13 +431,13 @@ def estimate_model(
             specs, out_dir if out_dir is not None else tmp, workers, progress_bar=progress_bar
         )
     runs = [
-        (int(s.allocator_kwargs["circuit"]), _group_of(s.key), measured_rate(results[s.key]))
+        (int(s.allocator_kwargs["circuit"]), group_of_key(s.key), measured_rate(results[s.key]))
         for s in specs
     ]
     return model_from_runs(cfg, runs)
 
 
-def _group_of(key: str) -> Group:
-    """The group encoded in a `group_specs` key."""
+def group_of_key(key: str) -> Group:
+    """The group encoded in a `group_specs` key (`...c<i>_g<n0>-<n1>..._s<seed>`)."""
     part = key.rsplit("_g", 1)[1].split("_s", 1)[0]
     return tuple(int(n) for n in part.split("-"))

@@ -160,15 +160,15 @@ class StaticAllocator(TeamAllocator):
             {"model": model is not None, "circuits": circuits},
             "exactly one of model= or circuits=",
         )
-        self.model = None if model is None else _model(model)
-        self.plan = None if circuits is None else [int(c) for c in circuits]
         if circuits is not None:
             require(
-                all(is_integer(c) and c >= 0 for c in circuits),
+                isinstance(circuits, Sequence) and all(is_integer(c) and c >= 0 for c in circuits),
                 "circuits",
                 circuits,
                 "one circuit index >= 0 per robot",
             )
+        self.model = None if model is None else _model(model)
+        self.plan = None if circuits is None else [int(c) for c in circuits]
 
     def setup(self) -> None:
         n = len(self.agents)

@@ -33,15 +33,21 @@ class ResponseThresholdAllocator(TeamAllocator):
 
     Knows: the deliveries announced by every robot (circuit and time, as a sink-side counter would
     broadcast) and the circuits' current values. Not speeds, not the model.
+
+    Defaults: stimuli in `dahl2004` are 20-40 s (about three robots per circuit), so thresholds
+    start at 30 s, in the middle; a 70 s task moves the thresholds by 7 s and 3.5 s, so a robot
+    that keeps a circuit for a few tasks specialises (with theta 1 s against 100 s it switches on
+    about 8 % of decisions, like epsilon-greedy), while a starving circuit's stimulus still grows
+    until someone answers it.
     """
 
     def __init__(
         self,
         theta0: float = 30.0,
-        xi: float = 0.02,
-        phi: float = 0.01,
+        xi: float = 0.1,
+        phi: float = 0.05,
         theta_min: float = 1.0,
-        theta_max: float = 60.0,
+        theta_max: float = 100.0,
         memory: float = 0.1,
     ) -> None:
         super().__init__()
@@ -78,8 +84,8 @@ class ResponseThresholdAllocator(TeamAllocator):
                 continue
             i, now = int(info["circuit"]), float(info["sim_time_s"])
             gap = now - self.last[i]
-            self.gap[i] = gap if np.isnan(self.gap[i]) else self.gap[i] + self.memory * (
-                gap - self.gap[i]
+            self.gap[i] = (
+                gap if np.isnan(self.gap[i]) else self.gap[i] + self.memory * (gap - self.gap[i])
             )
             self.last[i] = now
 
