@@ -268,7 +268,7 @@ def plot(summary: Sequence[Mapping[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
-def main() -> None:
+def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--presets", nargs="+", default=list(PRESETS), choices=PRESETS)
     parser.add_argument("--trials", type=int, default=10)
@@ -277,17 +277,27 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--out", type=Path, default=RESULTS_DIR / "allocators")
     parser.add_argument("--quick", action="store_true", help="2 trials of 1 h + 1 h (smoke run)")
-    args = parser.parse_args()
+    parser.add_argument(
+        "--model",
+        type=Path,
+        nargs="+",
+        default=None,
+        help="model.json per preset (default: the committed ones)",
+    )
+    args = parser.parse_args(argv)
     if args.quick:
         args.trials, args.convergence_h, args.measured_h = 2, 1.0, 1.0
         if args.out == RESULTS_DIR / "allocators":
             args.out = RESULTS_DIR / "allocators_quick"
     if args.trials < 2:
         parser.error(f"--trials = {args.trials}; allowed: >= 2 (for confidence intervals)")
-    if args.convergence_h < 0 or args.measured_h < 1:
-        parser.error("allowed: --convergence-h >= 0 and --measured-h >= 1")
+    if args.convergence_h < 0 or args.measured_h <= 0:
+        parser.error("allowed: --convergence-h >= 0 and --measured-h > 0")
+    if args.model is not None and len(args.model) != len(args.presets):
+        parser.error(f"--model: {len(args.model)} paths; allowed: one per preset {args.presets}")
 
-    models = {p: load_model(p) for p in args.presets}
+    paths = args.model or [None] * len(args.presets)
+    models = {p: load_model(p, path) for p, path in zip(args.presets, paths)}
     specs = [s for p in args.presets for s in specs_for(p, models[p], args)]
     settings = {k: str(v) for k, v in vars(args).items() if k != "workers"}
     results, meta = run_trials(specs, args.out / "cache", args.workers, settings)

@@ -47,9 +47,10 @@ def model_dir(preset: str) -> Path:
     return RESULTS_DIR / "tavc_model" / preset
 
 
-def load_model(preset: str) -> CompletionModel:
-    """The committed model of `preset`, or an error naming the command that makes it."""
-    path = model_dir(preset) / "model.json"
+def load_model(preset: str, path: Path | None = None) -> CompletionModel:
+    """The model at `path` (default: the committed model of `preset`), or an error naming the
+    command that makes it."""
+    path = path if path is not None else model_dir(preset) / "model.json"
     if not path.exists():
         raise SystemExit(
             f"{path} is missing; run `python benchmarks/tavc_model.py --preset {preset}` first"
@@ -69,7 +70,7 @@ def allocation_key(allocation: Allocation) -> str:
     return "_".join("-".join(map(str, g)) for g in allocation)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--preset", default="dahl2004", choices=sorted(PRESETS))
     parser.add_argument("--seeds", type=int, default=3, help="runs per group and circuit")
@@ -78,7 +79,10 @@ def main() -> None:
     parser.add_argument("--check-seeds", type=int, default=3, help="runs per checked allocation")
     parser.add_argument("--top", type=int, default=6, help="next-best allocations to check")
     parser.add_argument("--workers", type=int, default=None)
-    args = parser.parse_args()
+    parser.add_argument(
+        "--out", type=Path, default=None, help="default: results/tavc_model/<preset>"
+    )
+    args = parser.parse_args(argv)
     for name in ("seeds", "check_seeds", "top"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} = {getattr(args, name)}; allowed: >= 1")
@@ -87,9 +91,9 @@ def main() -> None:
 
     config = make_config(args.preset)
     classes = SpeedClasses.of(config)
-    out = model_dir(args.preset)
+    out = args.out if args.out is not None else model_dir(args.preset)
     warmup, measured = args.warmup_min * 60.0, args.measured_h * 3600.0
-    settings = {k: v for k, v in vars(args).items() if k != "workers"}
+    settings = {k: str(v) for k, v in vars(args).items() if k not in ("workers", "out")}
 
     # 1. Completion frequencies of every group on every circuit.
     specs = group_specs(config, range(args.seeds), warmup, measured)

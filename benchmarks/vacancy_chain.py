@@ -18,9 +18,11 @@ identical, which is how the robot to break is chosen. Measured per allocator, ov
   head of the chain) and the moves in the chain until then;
 * value lost: delivered value (sum of w / max w) per hour while the robot is broken, against the
   paired control and against the model optimum of the reduced team;
-* after the swap: the model value of the allocation (new values) against the new optimum, per hour.
+* after the swap: the model value of the allocation (new values) against the new optimum, in each
+  third of the last phase.
 
-Outputs in `benchmarks/results/vacancy_chain/`: `vacancy_chain.{md,csv,json}`, `trials.csv` and
+Outputs in `benchmarks/results/vacancy_chain/`: `vacancy_chain.{md,csv,json}`, `trials.csv` (an
+empty `recovery_min` means never back to full strength) and
 `timeline.png` (each robot's circuit around the events, one allocator per panel, one seed).
 
     python benchmarks/vacancy_chain.py
@@ -30,6 +32,7 @@ Outputs in `benchmarks/results/vacancy_chain/`: `vacancy_chain.{md,csv,json}`, `
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -54,6 +57,7 @@ from agents.sweep import TrialSpec
 from tavc_env import make_config, metrics
 
 PRESET = "dahl2004"
+SWAP_WINDOWS = 3  # the phase after the priority change, in thirds (hours with --phase-h 3)
 ALLOCATORS = {  # registry name -> label
     "softmax_tavc": "softmax TAVC",
     "epsilon_tavc": "epsilon TAVC",
@@ -143,8 +147,8 @@ def measure(
     swapped = model.with_values(tuple(reversed(model.values)))
     new_best = swapped.performance(swapped.optimum())
     after_swap = []
-    for h in range(round((te - tv) / 3600.0)):
-        a, b = tv + 3600.0 * h, min(tv + 3600.0 * (h + 1), te)
+    edges = np.linspace(tv, te, SWAP_WINDOWS + 1)
+    for a, b in itertools.pairwise(edges):
         dur, states = metrics.allocation_segments(result.initial_circuits, result.changes, a, b)
         vals = [swapped.performance(allocation_of(s, classes, model.n_circuits)) for s in states]
         after_swap.append(float(np.dot(dur, vals) / dur.sum()) / new_best)
@@ -163,11 +167,11 @@ def measure(
         "lost_vs_control_per_h": delivered(control, tb, tr) - delivered(result, tb, tr),
         "repaired_value_per_h": delivered(result, tr, tv),
         "repaired_control_per_h": delivered(control, tr, tv),
-        **{f"swap_h{h + 1}_fraction": v for h, v in enumerate(after_swap)},
+        **{f"swap_w{k + 1}_fraction": v for k, v in enumerate(after_swap)},
     }
 
 
-def main() -> None:
+def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--trials", type=int, default=10)
     parser.add_argument("--convergence-h", type=float, default=15.0)
@@ -175,15 +179,16 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--out", type=Path, default=RESULTS_DIR / "vacancy_chain")
     parser.add_argument("--quick", action="store_true", help="2 trials, 1 h + 3 x 1 h (smoke run)")
-    args = parser.parse_args()
+    parser.add_argument("--model", type=Path, default=None, help="default: the committed one")
+    args = parser.parse_args(argv)
     if args.quick:
         args.trials, args.convergence_h, args.phase_h = 2, 1.0, 1.0
         if args.out == RESULTS_DIR / "vacancy_chain":
             args.out = RESULTS_DIR / "vacancy_chain_quick"
-    if args.trials < 2 or args.convergence_h <= 0 or args.phase_h < 1:
-        parser.error("allowed: --trials >= 2, --convergence-h > 0, --phase-h >= 1")
+    if args.trials < 2 or args.convergence_h <= 0 or args.phase_h <= 0:
+        parser.error("allowed: --trials >= 2, --convergence-h > 0, --phase-h > 0")
 
-    model = load_model(PRESET)
+    model = load_model(PRESET, args.model)
     classes = SpeedClasses.of(make_config(PRESET))
     h = 3600.0
     times = {
@@ -276,7 +281,7 @@ def summarise(rows: Sequence[Mapping[str, Any]], phase_h: float) -> list[dict[st
             "reduced_optimum_per_h": mine[0]["reduced_optimum_per_h"],
         }
         keys = ["broken_value_per_h", "lost_vs_control_per_h", "repaired_value_per_h"]
-        keys += [k for k in mine[0] if k.startswith("swap_h")]
+        keys += [k for k in mine[0] if k.startswith("swap_w")]
         for key in keys:
             m, lo, hi, _ = mean_ci([r[key] for r in mine])
             row.update({key: m, f"{key}_low": lo, f"{key}_high": hi})
@@ -290,7 +295,7 @@ def report(
     classes: SpeedClasses,
     args: argparse.Namespace,
 ) -> str:
-    swap_keys = [k for k in summary[0] if k.startswith("swap_h") and k.endswith("fraction")]
+    swap_keys = [k for k in summary[0] if k.startswith("swap_w") and k.endswith("fraction")]
     lines = [
         f"`{PRESET}`, {args.trials} trials per allocator: {args.convergence_h:g} h convergence, "
         f"then breakdown, repair and value swap {args.phase_h:g} h apart. Mean [95 % CI] over "
@@ -332,10 +337,11 @@ def report(
             ],
         ),
         "",
-        "## Priority change (values swap): model value of the allocation / new optimum, per hour",
+        "## Priority change (values swap): model value of the allocation / new optimum, by third "
+        "of the phase after it",
         "",
         markdown_table(
-            ["allocator", *(f"hour {k + 1}" for k in range(len(swap_keys)))],
+            ["allocator", *(f"third {k + 1}" for k in range(len(swap_keys)))],
             [
                 [
                     r["label"],
