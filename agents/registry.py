@@ -8,8 +8,9 @@ or `("greedy", {"model": model.to_dict()})`.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, TypeVar
 
 from agents.baselines import FixedAllocator, RandomAllocator
 from agents.market import AuctionAllocator
@@ -33,6 +34,20 @@ TEAMS: Mapping[str, Callable[..., Team]] = {
 }
 
 ALLOCATORS = sorted({*POLICIES, *TEAMS})
+T = TypeVar("T")
+
+
+def _build(factory: Callable[..., T], name: str, params: Mapping[str, Any]) -> T:
+    """Call `factory(**params)`; parameters it does not take become a ValueError naming them."""
+    signature = inspect.signature(factory)
+    try:
+        signature.bind(**params)
+    except TypeError as error:
+        raise ValueError(
+            f"parameters {sorted(params)} of allocator {name!r} are invalid ({error}); "
+            f"allowed: {signature}"
+        ) from None
+    return factory(**params)
 
 
 def make_policy(name: str, **params: Any) -> Policy:
@@ -42,14 +57,14 @@ def make_policy(name: str, **params: Any) -> Policy:
         raise ValueError(
             f"allocator {name!r} is not a per-robot policy{hint}; allowed: {sorted(POLICIES)}"
         )
-    return POLICIES[name](**params)
+    return _build(POLICIES[name], name, params)
 
 
 def make_allocator(name: str, **params: Any) -> Callable[[str], Policy] | Team:
     """What `agents.runner.run_trial` takes for the named allocator: a `Team`, or a factory
     making a fresh per-robot policy for each agent."""
     if name in TEAMS:
-        return TEAMS[name](**params)
+        return _build(TEAMS[name], name, params)
     if name not in POLICIES:
         raise ValueError(f"allocator {name!r} is unknown; allowed: {ALLOCATORS}")
     make_policy(name, **params)  # bad parameters fail here, before the trial starts

@@ -460,10 +460,15 @@ def test_sweep_duplicate_and_bad_keys_raise(tmp_path: Path) -> None:
 
 
 def test_sweep_unknown_allocator_raises(tmp_path: Path) -> None:
-    spec = TrialSpec(key="x", allocator="greedy", seed=0, env_kwargs={"preset": "dahl2004"}, **TINY)
-    with pytest.raises(ValueError, match="allocator 'greedy' is unknown"):
+    spec = TrialSpec(key="x", allocator="nope", seed=0, env_kwargs={"preset": "dahl2004"}, **TINY)
+    with pytest.raises(ValueError, match="allocator 'nope' is unknown"):
         run_sweep([spec], tmp_path, workers=1)
     assert not result_path(tmp_path, "x").exists()
+    # a known allocator without its required parameters: named, with what it takes
+    spec = TrialSpec(key="y", allocator="greedy", seed=0, env_kwargs={"preset": "dahl2004"}, **TINY)
+    with pytest.raises(ValueError, match=r"parameters \[\] of allocator 'greedy' are invalid"):
+        run_sweep([spec], tmp_path, workers=1)
+    assert not result_path(tmp_path, "y").exists()
 
 
 def test_sweep_does_not_resume_a_result_of_a_different_spec(tmp_path: Path) -> None:
