@@ -3,7 +3,12 @@
 A sweep is a list of `TrialSpec`s (plain data: allocator name and parameters, env arguments,
 seed, periods). Each finished trial is written at once to `<out_dir>/<key>.json` (atomically), so a
 killed sweep loses at most the trials that were running; rerunning the same sweep loads the
-finished ones and runs only the rest. Trials run in a local process pool over all cores by default.
+finished ones and runs only the rest.
+
+Backends: `"local"` (default) runs trials in a process pool over this machine's cores and needs
+nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
+or, with `RAY_ADDRESS` set, on a cluster whose nodes have this package installed. Either way the
+driver writes each result the moment it arrives, so the two backends resume each other's sweeps.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from agents.registry import make_allocator
 from agents.runner import Event, TrialResult, run_trial
 
 _KEY = re.compile(r"^[A-Za-z0-9_.=-]+$")
+BACKENDS = ("local", "ray")
 
 
 @dataclass(frozen=True)
@@ -79,13 +85,18 @@ def run_sweep(
     workers: int | None = None,
     on_done: Callable[[TrialSpec, TrialResult, bool], None] | None = None,
     progress_bar: bool = False,
+    backend: str = "local",
 ) -> dict[str, TrialResult]:
     """Run every spec not already finished in `out_dir`; return all results by key.
 
     `workers`: processes (default: all cores; 1 runs in this process). `on_done(spec, result,
     resumed)` is called for each trial as it becomes available (resumed: loaded from disk).
-    `progress_bar`: show a tqdm bar over trials on standard output.
+    `progress_bar`: show a tqdm bar over trials on standard output. `backend`: one of `BACKENDS`
+    (with `"ray"`, `workers` caps the CPUs of a Ray instance started here; ignored when joining
+    a running cluster through `RAY_ADDRESS`).
     """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend = {backend!r} is invalid; allowed: {list(BACKENDS)}")
     if progress_bar:
         bar = tqdm(total=len(specs), unit="trial", dynamic_ncols=True, file=sys.stdout)
         user_on_done = on_done
@@ -97,7 +108,7 @@ def run_sweep(
                 user_on_done(spec, result, resumed)
 
         try:
-            return run_sweep(specs, out_dir, workers, on_done)
+            return run_sweep(specs, out_dir, workers, on_done, backend=backend)
         finally:
             bar.close()
 
@@ -135,6 +146,9 @@ def run_sweep(
         if on_done is not None:
             on_done(spec, result, False)
 
+    if backend == "ray":
+        _run_on_ray(todo, n_workers if workers is not None else None, finish)
+        return results
     if n_workers == 1 or len(todo) <= 1:
         for spec in todo:
             finish(spec, run_spec(spec))
@@ -144,3 +158,39 @@ def run_sweep(
         for future in as_completed(futures):
             finish(futures[future], future.result())
     return results
+
+
+def _run_on_ray(
+    todo: Sequence[TrialSpec],
+    workers: int | None,
+    finish: Callable[[TrialSpec, TrialResult], None],
+) -> None:
+    """Run `todo` as Ray tasks (one CPU each), finishing each result as soon as it arrives."""
+    if not todo:
+        return
+    try:
+        import ray
+    except ImportError as error:
+        raise ImportError(
+            "backend 'ray' needs Ray; install it with: pip install 'tavc-env[ray]' "
+            "(or pip install ray)"
+        ) from error
+    started_here = not ray.is_initialized()
+    if started_here:
+        address = os.environ.get("RAY_ADDRESS")
+        if address:
+            ray.init(address=address, log_to_driver=False)
+        else:
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+    task = ray.remote(num_cpus=1)(run_spec)
+    pending = {task.remote(spec): spec for spec in todo}
+    try:
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                finish(pending.pop(ref), ray.get(ref))
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if started_here:
+            ray.shutdown()
