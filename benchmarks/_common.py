@@ -325,8 +325,26 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     return overrides
 
 
+def add_sweep_options(parser: argparse.ArgumentParser) -> None:
+    """`--workers` and `--backend`, for scripts that run their trials through `run_trials`."""
+    parser.add_argument(
+        "--workers", type=int, default=None, help="processes, or Ray CPUs (default: all cores)"
+    )
+    parser.add_argument(
+        "--backend",
+        choices=["local", "ray"],
+        default="local",
+        help="local process pool (default) or Ray tasks (pip install 'tavc-env[ray]'; set "
+        "RAY_ADDRESS to use a cluster); results and resume are the same either way",
+    )
+
+
 def run_trials(
-    specs: Sequence[Any], out_dir: Path, workers: int | None, settings: Mapping[str, Any]
+    specs: Sequence[Any],
+    out_dir: Path,
+    workers: int | None,
+    settings: Mapping[str, Any],
+    backend: str = "local",
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Run (or resume) a sweep of `agents.sweep.TrialSpec`s with a progress bar; return the
     results by key and the run metadata, taken before the trials run (the commit they ran from),
@@ -343,7 +361,9 @@ def run_trials(
             resumed.append(spec.key)
 
     started = time.perf_counter()
-    results = run_sweep(specs, out_dir, workers=workers, on_done=note, progress_bar=True)
+    results = run_sweep(
+        specs, out_dir, workers=workers, on_done=note, progress_bar=True, backend=backend
+    )
     meta.update(
         wall_time_s=time.perf_counter() - started,
         trials_resumed=len(resumed),

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 from _common import (
     RESULTS_DIR,
+    add_sweep_options,
     fmt_ci,
     have_matplotlib,
     markdown_table,
@@ -274,7 +275,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--trials", type=int, default=10)
     parser.add_argument("--convergence-h", type=float, default=15.0)
     parser.add_argument("--measured-h", type=float, default=5.0)
-    parser.add_argument("--workers", type=int, default=None)
+    add_sweep_options(parser)
     parser.add_argument("--out", type=Path, default=RESULTS_DIR / "allocators")
     parser.add_argument("--quick", action="store_true", help="2 trials of 1 h + 1 h (smoke run)")
     parser.add_argument(
@@ -300,7 +301,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     models = {p: load_model(p, path) for p, path in zip(args.presets, paths)}
     specs = [s for p in args.presets for s in specs_for(p, models[p], args)]
     settings = {k: str(v) for k, v in vars(args).items() if k != "workers"}
-    results, meta = run_trials(specs, args.out / "cache", args.workers, settings)
+    results, meta = run_trials(
+        specs, args.out / "cache", args.workers, settings, backend=args.backend
+    )
 
     summary: list[dict[str, Any]] = []
     per_trial: list[dict[str, Any]] = []

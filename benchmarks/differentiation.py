@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from _common import (
     RESULTS_DIR,
+    add_sweep_options,
     fmt_ci,
     have_matplotlib,
     markdown_table,
@@ -229,7 +230,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--measured-h", type=float, default=5.0)
     ap.add_argument("--init", default="scaled", choices=["scaled", "paper"])
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--workers", type=int, default=None)
+    add_sweep_options(ap)
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument(
         "--quick", action="store_true", help="2 trials of 0.3 + 0.2 h, two temperatures"
@@ -270,6 +271,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "init": args.init,
             "seed": args.seed,
         },
+        backend=args.backend,
     )
     wall = meta["wall_time_s"]
     groups: dict[tuple[str, str], list[TrialMeasures]] = {}

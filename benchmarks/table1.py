@@ -32,6 +32,7 @@ import numpy as np
 from _common import (
     RESULTS_DIR,
     add_override_option,
+    add_sweep_options,
     fmt_ci,
     have_matplotlib,
     markdown_table,
@@ -436,7 +437,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--temperature", type=float, default=0.005)
     ap.add_argument("--epsilon", type=float, default=0.1)
     ap.add_argument("--seed", type=int, default=0, help="trial k uses seed + k in every condition")
-    ap.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    add_sweep_options(ap)
     ap.add_argument("--out", type=Path, default=None, help="output folder")
     ap.add_argument("--quick", action="store_true", help="smoke run: 2 trials of 0.3 + 0.2 hours")
     add_override_option(ap)
@@ -491,6 +492,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "seed": args.seed,
             "overrides": overrides,
         },
+        backend=args.backend,
     )
     wall = meta["wall_time_s"]
 

@@ -26,7 +26,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _common import RESULTS_DIR, markdown_table, mean_ci, run_trials, write_csv, write_results
+from _common import (
+    RESULTS_DIR,
+    add_sweep_options,
+    markdown_table,
+    mean_ci,
+    run_trials,
+    write_csv,
+    write_results,
+)
 from scipy import stats
 
 from agents.model import (
@@ -78,7 +86,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--measured-h", type=float, default=2.0)
     parser.add_argument("--check-seeds", type=int, default=3, help="runs per checked allocation")
     parser.add_argument("--top", type=int, default=6, help="next-best allocations to check")
-    parser.add_argument("--workers", type=int, default=None)
+    add_sweep_options(parser)
     parser.add_argument(
         "--out", type=Path, default=None, help="default: results/tavc_model/<preset>"
     )
@@ -98,7 +106,9 @@ def main(argv: list[str] | None = None) -> None:
     # 1. Completion frequencies of every group on every circuit.
     specs = group_specs(config, range(args.seeds), warmup, measured)
     print(f"measuring c for {len(specs)} group runs ({args.preset})")
-    results, meta = run_trials(specs, out / "cache" / "groups", args.workers, settings)
+    results, meta = run_trials(
+        specs, out / "cache" / "groups", args.workers, settings, backend=args.backend
+    )
     runs = []
     rows = []
     for spec in specs:
@@ -191,7 +201,9 @@ def main(argv: list[str] | None = None) -> None:
         for seed in range(args.check_seeds)
     ]
     print(f"checking {len(allocations)} allocations in the full arena")
-    checked, check_meta = run_trials(check_specs, out / "cache" / "check", args.workers, settings)
+    checked, check_meta = run_trials(
+        check_specs, out / "cache" / "check", args.workers, settings, backend=args.backend
+    )
     check_rows: list[dict[str, Any]] = []
     for a in allocations:
         perfs = []

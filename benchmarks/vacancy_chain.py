@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from _common import (
     RESULTS_DIR,
+    add_sweep_options,
     fmt_ci,
     have_matplotlib,
     markdown_table,
@@ -176,7 +177,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--trials", type=int, default=10)
     parser.add_argument("--convergence-h", type=float, default=15.0)
     parser.add_argument("--phase-h", type=float, default=3.0)
-    parser.add_argument("--workers", type=int, default=None)
+    add_sweep_options(parser)
     parser.add_argument("--out", type=Path, default=RESULTS_DIR / "vacancy_chain")
     parser.add_argument("--quick", action="store_true", help="2 trials, 1 h + 3 x 1 h (smoke run)")
     parser.add_argument("--model", type=Path, default=None, help="default: the committed one")
@@ -216,6 +217,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         args.out / "cache",
         args.workers,
         settings,
+        backend=args.backend,
     )
     broken = {
         (n, s): robot_to_break(controls[f"{n}_control_s{s}"], times["break"], classes)
@@ -237,7 +239,9 @@ def main(argv: Sequence[str] | None = None) -> None:
         for n in ALLOCATORS
         for s in range(args.trials)
     ]
-    runs, event_meta = run_trials(event_specs, args.out / "cache", args.workers, settings)
+    runs, event_meta = run_trials(
+        event_specs, args.out / "cache", args.workers, settings, backend=args.backend
+    )
     meta["wall_time_s"] = meta["wall_time_s"] + event_meta["wall_time_s"]
 
     per_trial = []
