@@ -12,6 +12,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from tavc_env.config import ArenaConfig
+
 
 @runtime_checkable
 class Policy(Protocol):
@@ -65,8 +67,8 @@ class Team(Protocol):
     scheduled event, always before any robot acts.
     """
 
-    def policies(self, agents: list[str], config: Any) -> dict[str, Policy]:
-        """One policy per agent for a trial in the arena `config` (an `ArenaConfig`)."""
+    def policies(self, agents: list[str], config: ArenaConfig) -> dict[str, Policy]:
+        """One policy per agent for a trial in the arena `config`."""
 
     def observe(
         self, infos: Mapping[str, Mapping[str, Any]], circuit_values: Sequence[float]

@@ -21,6 +21,7 @@ import numpy as np
 from agents.model import CompletionModel, SpeedClasses, robot_circuits
 from agents.policy import Policy, allowed_actions, state_of
 from tavc_env._validation import is_integer, require
+from tavc_env.config import ArenaConfig
 
 
 class TeamAllocator:
@@ -33,7 +34,7 @@ class TeamAllocator:
 
     def __init__(self) -> None:
         self.agents: list[str] = []
-        self.config: Any = None
+        self.config: ArenaConfig | None = None
         self.classes = SpeedClasses((), (), ())
         self.current: list[int] = []
         self.broken: list[bool] = []
@@ -43,7 +44,7 @@ class TeamAllocator:
         self.n_actions = 0
 
     # -- the Team protocol ----------------------------------------------------------------------
-    def policies(self, agents: list[str], config: Any) -> dict[str, Policy]:
+    def policies(self, agents: list[str], config: ArenaConfig) -> dict[str, Policy]:
         self.agents = list(agents)
         self.config = config
         self.classes = SpeedClasses.of(config)
