@@ -282,7 +282,7 @@ def summarise(rows: Sequence[Mapping[str, Any]], phase_h: float) -> list[dict[st
             "head_fast": sum(r["head_class"] == "fast" for r in mine),
             "head_slow": sum(r["head_class"] == "slow" for r in mine),
             "chain_moves_mean": float(np.mean([r["chain_moves"] for r in mine])),
-            "reduced_optimum_per_h": mine[0]["reduced_optimum_per_h"],
+            "reduced_optimum_per_h": float(np.mean([r["reduced_optimum_per_h"] for r in mine])),
         }
         keys = ["broken_value_per_h", "lost_vs_control_per_h", "repaired_value_per_h"]
         keys += [k for k in mine[0] if k.startswith("swap_w")]
@@ -310,6 +310,7 @@ def report(
         markdown_table(
             [
                 "allocator",
+                "broken: fast / slow",
                 "full strength again (median min)",
                 "head of chain: fast / slow",
                 "moves in chain",
@@ -320,6 +321,7 @@ def report(
             [
                 [
                     r["label"],
+                    f"{r['broken_fast']} / {r['trials'] - r['broken_fast']}",
                     _minutes(r),
                     f"{r['head_fast']} / {r['head_slow']}",
                     f"{r['chain_moves_mean']:.1f}",
