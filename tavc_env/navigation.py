@@ -208,6 +208,35 @@ def _stuck(
 stuck = _compile(_stuck)
 
 
+def _after_step(
+    pos: np.ndarray,
+    target: np.ndarray,
+    trigger: np.ndarray,
+    moving: np.ndarray,
+    present: np.ndarray,
+    anchor: np.ndarray,
+    anchor_time: np.ndarray,
+    now: float,
+    patience_s: float,
+    stuck_too: bool,
+    arrived: np.ndarray,
+    stalled: np.ndarray,
+) -> tuple[int, int]:
+    """`arrivals`, then, if nobody arrived and `stuck_too`, `stuck` over the robots moving on the
+    floor, in one call (the common tick). Returns (arrived count, stalled count or -1 if the stuck
+    check was not run because an arrival may change who is moving)."""
+    k = _arrivals_c(pos, target, trigger, arrived)
+    if k > 0 or not stuck_too:
+        return k, -1
+    active = moving & present
+    return 0, _stuck_c(pos, target, active, anchor, anchor_time, now, patience_s, stalled)
+
+
+_arrivals_c = arrivals
+_stuck_c = stuck
+after_step = _compile(_after_step)
+
+
 @dataclass(frozen=True)
 class Command:
     velocity: np.ndarray  # (n, 2) m/s
