@@ -15,10 +15,13 @@ from tavc_env.config import ArenaConfig
 from tavc_env.navigation import (
     ESCAPE_DISTANCE_M,
     ESCAPE_TIME_S,
+    GRID_MIN_ROBOTS,
     STUCK_PATIENCE_S,
     Navigator,
     after_step,
+    neighbour_cell_m,
     steer_all,
+    steer_all_grid,
     stuck,
 )
 from tavc_env.tasks import Completion, Mode, Phase, TaskCycle
@@ -53,6 +56,12 @@ class Simulation:
         self._stalled = np.zeros(n, dtype=np.int64)
         self._next_heading = np.zeros(n)
         self._next_service = math.inf  # earliest end of a loading / unloading
+        # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
+        self._grid_cell = (
+            neighbour_cell_m(config.robot_radius, config.sensing_range_m)
+            if n >= GRID_MIN_ROBOTS
+            else 0.0
+        )
         self._anchor = np.zeros((n, 2))  # where each robot last made progress ...
         self._anchor_time = np.zeros(n)  # ... and when
         self._escape_until = np.zeros(n)  # end of a robot's escape manoeuvre (0: none)
@@ -163,7 +172,7 @@ class Simulation:
             target = np.where(
                 (self._escape_until > self.time_s)[:, None], self._escape_target, tasks.target
             )
-        steer_all(
+        args = (
             self._pos,
             self.heading,
             target,
@@ -178,6 +187,10 @@ class Simulation:
             self.world.velocity_out(),
             self._next_heading,
         )
+        if self._grid_cell > 0:
+            steer_all_grid(*args, self._grid_cell)
+        else:
+            steer_all(*args)
         self.heading, self._next_heading = self._next_heading, self.heading
         self.world.push_velocities()
         self.world.step(dt)

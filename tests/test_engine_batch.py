@@ -3,6 +3,8 @@
 * `World` reads positions and writes velocities through pymunk's batch API: the values must be
   those of per-body attribute access, also after robots leave and re-enter the space (which
   reorders pymunk's bodies).
+* `navigation.steer_all_grid` finds each robot's neighbours on a grid: the commands must be
+  exactly those of `steer_all`, which looks at every pair.
 * `navigation.after_step` fuses the arrival and stuck checks: it must give the same robots, and
   leave the same anchors, as `arrivals` then `stuck`.
 """
@@ -13,7 +15,15 @@ import numpy as np
 import pytest
 
 import tavc_env
-from tavc_env.navigation import STUCK_PATIENCE_S, after_step, arrivals, stuck
+from tavc_env.navigation import (
+    STUCK_PATIENCE_S,
+    after_step,
+    arrivals,
+    neighbour_cell_m,
+    steer_all,
+    steer_all_grid,
+    stuck,
+)
 from tavc_env.world import World
 
 
@@ -92,3 +102,52 @@ def test_fused_after_step_equals_arrivals_then_stuck() -> None:
         else:
             assert m == -1, trial  # the caller runs the stuck check after handling arrivals
         assert np.array_equal(a_anchor, b_anchor) and np.array_equal(a_time, b_time), trial
+
+
+def test_grid_neighbour_search_gives_exactly_the_all_pairs_commands() -> None:
+    rng = np.random.default_rng(3)
+    radius, sensing, turn, w, h = 0.22, 1.0, 0.175, 30.0, 12.0
+    cell = neighbour_cell_m(radius, sensing)
+    for trial in range(100):
+        n = int(rng.integers(2, 60))
+        # crowded clusters and scattered robots, some just outside the walls' line
+        pos = rng.uniform(-0.1, 1.0, size=(n, 2)) * np.array([w, h])
+        if trial % 2:
+            pos[: n // 2] = rng.normal([5.0, 5.0], 0.6, size=(n // 2, 2))
+        heading = rng.uniform(-np.pi, np.pi, n)
+        target = pos + rng.normal(scale=2.0, size=(n, 2))
+        moving = rng.random(n) < 0.8
+        speed = rng.uniform(0.2, 0.3, n)
+        present = rng.random(n) < 0.9
+        a_v, a_h = np.zeros((n, 2)), np.zeros(n)
+        b_v, b_h = np.zeros((n, 2)), np.zeros(n)
+        common = (pos, heading, target, moving, speed, present, radius, sensing, turn, w, h)
+        steer_all(*common, a_v, a_h)
+        steer_all_grid(*common, b_v, b_h, cell)
+        assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), trial
+
+
+def test_simulation_with_and_without_the_grid_is_identical(monkeypatch: pytest.MonkeyPatch) -> None:
+    import tavc_env.simulation as simulation
+
+    config = tavc_env.scaled_config(8)  # 24 robots: above GRID_MIN_ROBOTS
+
+    def run() -> np.ndarray:
+        sim = simulation.Simulation(config)
+        sim.reset(np.random.default_rng(2))
+        rng = np.random.default_rng(9)
+        for i in range(config.n_robots):
+            sim.choose(i, int(rng.integers(config.n_circuits)))
+        trace = []
+        for _ in range(40):
+            out = sim.advance(30.0, stop_on_decision=False)
+            for c in out.completions:
+                sim.choose(c.robot, int(rng.integers(config.n_circuits)))
+            trace.append(sim.positions())
+        return np.array(trace)
+
+    assert simulation.Simulation(config)._grid_cell > 0
+    with_grid = run()
+    monkeypatch.setattr(simulation, "GRID_MIN_ROBOTS", 10**9)
+    assert simulation.Simulation(config)._grid_cell == 0
+    assert np.array_equal(with_grid, run())
