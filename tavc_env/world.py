@@ -70,6 +70,19 @@ class World:
         self._velocity_out = np.zeros((n, 2))
         self._reindex()
 
+    def __getstate__(self) -> dict[str, object]:
+        # pymunk's batch buffers are C data: not picklable; rebuilt on unpickling
+        state = self.__dict__.copy()
+        del state["_get"], state["_set"]
+        return state
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self._get = pymunk.batch.Buffer()
+        self._get.set_float_buf(self._positions_in.reshape(-1))
+        self._set = pymunk.batch.Buffer()
+        self._reindex()  # bodies are new C objects: find their slots again
+
     def _reindex(self) -> None:
         """Find each robot's slot in the batch order (after bodies enter or leave the space)."""
         self._get.clear()
