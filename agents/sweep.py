@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from tqdm import tqdm
 
@@ -79,6 +79,130 @@ def spec_record(spec: TrialSpec) -> dict[str, Any]:
     return data
 
 
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+@dataclass(frozen=True)
+class JobKind(Generic[J, R]):
+    """How one kind of job is run, named, saved and checked on resume.
+
+    `run` must be a module-level function (it is sent to worker processes or Ray tasks);
+    `record(job)` is the job as plain JSON data, stored beside the result: a saved result is only
+    resumed for a job with the same record. `save(result, record, path)` writes atomically and
+    `load(path)` returns the result and its stored record.
+    """
+
+    run: Callable[[J], R]
+    key: Callable[[J], str]
+    record: Callable[[J], dict[str, Any]]
+    save: Callable[[R, dict[str, Any], Path], None]
+    load: Callable[[Path], tuple[R, dict[str, Any] | None]]
+    unit: str = "job"
+
+
+def run_jobs(
+    jobs: Sequence[J],
+    kind: JobKind[J, R],
+    out_dir: str | Path,
+    workers: int | None = None,
+    on_done: Callable[[J, R, bool], None] | None = None,
+    progress_bar: bool = False,
+    backend: str = "local",
+) -> dict[str, R]:
+    """Run every job not already finished in `out_dir` (one file per job key); return all results
+    by key. See `run_sweep` for the arguments; `run_sweep` is this for trials."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend = {backend!r} is invalid; allowed: {list(BACKENDS)}")
+    if progress_bar:
+        bar = tqdm(total=len(jobs), unit=kind.unit, dynamic_ncols=True, file=sys.stdout)
+        user_on_done = on_done
+
+        def on_done(job: J, result: R, resumed: bool) -> None:
+            bar.update(1)
+            bar.set_postfix_str(f"{kind.key(job)}{' (resumed)' if resumed else ''}")
+            if user_on_done is not None:
+                user_on_done(job, result, resumed)
+
+        try:
+            return run_jobs(jobs, kind, out_dir, workers, on_done, backend=backend)
+        finally:
+            bar.close()
+
+    keys = [kind.key(j) for j in jobs]
+    duplicates = sorted({k for k in keys if keys.count(k) > 1})
+    if duplicates:
+        raise ValueError(f"duplicate {kind.unit} keys {duplicates}; allowed: unique keys")
+    bad = [k for k in keys if not _KEY.match(k)]
+    if bad:
+        raise ValueError(
+            f"{kind.unit} keys {bad} are invalid; allowed: letters, digits and _ . = - (file names)"
+        )
+    n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    if not isinstance(n_workers, int) or n_workers < 1:
+        raise ValueError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, R] = {}
+    todo: list[J] = []
+    for job in jobs:
+        key = kind.key(job)
+        path = result_path(out, key)
+        if not path.exists():
+            todo.append(job)
+            continue
+        stored, record = kind.load(path)
+        if record != kind.record(job):
+            raise ValueError(
+                f"{path} holds {kind.unit} {key!r} run with different settings "
+                f"({record or 'unknown'}); allowed: the same settings to resume, or another "
+                "output folder (or delete the file) for new ones"
+            )
+        results[key] = stored
+        if on_done is not None:
+            on_done(job, stored, True)
+
+    def finish(job: J, result: R) -> None:
+        key = kind.key(job)
+        kind.save(result, kind.record(job), result_path(out, key))
+        results[key] = result
+        if on_done is not None:
+            on_done(job, result, False)
+
+    if backend == "ray":
+        _run_on_ray(todo, kind.run, n_workers if workers is not None else None, finish)
+        return results
+    if n_workers == 1 or len(todo) <= 1:
+        for job in todo:
+            finish(job, kind.run(job))
+        return results
+    with ProcessPoolExecutor(max_workers=min(n_workers, len(todo))) as pool:
+        futures = {pool.submit(kind.run, job): job for job in todo}
+        for future in as_completed(futures):
+            finish(futures[future], future.result())
+    return results
+
+
+def _save_trial(result: TrialResult, record: dict[str, Any], path: Path) -> None:
+    result.spec = record
+    result.save(path)
+
+
+def _load_trial(path: Path) -> tuple[TrialResult, dict[str, Any] | None]:
+    result = TrialResult.load(path)
+    return result, result.spec
+
+
+TRIALS: JobKind[TrialSpec, TrialResult] = JobKind(
+    run=run_spec,
+    key=lambda spec: spec.key,
+    record=spec_record,
+    save=_save_trial,
+    load=_load_trial,
+    unit="trial",
+)
+
+
 def run_sweep(
     specs: Sequence[TrialSpec],
     out_dir: str | Path,
@@ -95,75 +219,36 @@ def run_sweep(
     (with `"ray"`, `workers` caps the CPUs of a Ray instance started here; ignored when joining
     a running cluster through `RAY_ADDRESS`).
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend = {backend!r} is invalid; allowed: {list(BACKENDS)}")
-    if progress_bar:
-        bar = tqdm(total=len(specs), unit="trial", dynamic_ncols=True, file=sys.stdout)
-        user_on_done = on_done
+    return run_jobs(specs, TRIALS, out_dir, workers, on_done, progress_bar, backend)
 
-        def on_done(spec: TrialSpec, result: TrialResult, resumed: bool) -> None:
-            bar.update(1)
-            bar.set_postfix_str(f"{spec.key}{' (resumed)' if resumed else ''}")
-            if user_on_done is not None:
-                user_on_done(spec, result, resumed)
 
-        try:
-            return run_sweep(specs, out_dir, workers, on_done, backend=backend)
-        finally:
-            bar.close()
+def json_jobs(
+    run: Callable[[J], dict[str, Any]], key: Callable[[J], str], unit: str = "run"
+) -> JobKind[J, dict[str, Any]]:
+    """A `JobKind` for jobs that are frozen dataclasses and results that are JSON data: each is
+    saved as `{"record": <the job>, "result": <the result>}`."""
 
-    keys = [s.key for s in specs]
-    duplicates = sorted({k for k in keys if keys.count(k) > 1})
-    if duplicates:
-        raise ValueError(f"duplicate trial keys {duplicates}; allowed: unique keys")
-    n_workers = workers if workers is not None else (os.cpu_count() or 1)
-    if not isinstance(n_workers, int) or n_workers < 1:
-        raise ValueError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    results: dict[str, TrialResult] = {}
-    todo: list[TrialSpec] = []
-    for spec in specs:
-        path = result_path(out, spec.key)
-        if not path.exists():
-            todo.append(spec)
-            continue
-        stored = TrialResult.load(path)
-        if stored.spec != spec_record(spec):
-            raise ValueError(
-                f"{path} holds trial {spec.key!r} run with different settings "
-                f"({stored.spec or 'unknown'}); allowed: the same settings to resume, or another "
-                "output folder (or delete the file) for new ones"
-            )
-        results[spec.key] = stored
-        if on_done is not None:
-            on_done(spec, stored, True)
+    def record(job: J) -> dict[str, Any]:
+        data: dict[str, Any] = json.loads(json.dumps(asdict(job), default=repr))  # type: ignore[call-overload]
+        return data
 
-    def finish(spec: TrialSpec, result: TrialResult) -> None:
-        result.spec = spec_record(spec)
-        result.save(result_path(out, spec.key))
-        results[spec.key] = result
-        if on_done is not None:
-            on_done(spec, result, False)
+    def save(result: dict[str, Any], rec: dict[str, Any], path: Path) -> None:
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        tmp.write_text(json.dumps({"record": rec, "result": result}))
+        tmp.replace(path)
 
-    if backend == "ray":
-        _run_on_ray(todo, n_workers if workers is not None else None, finish)
-        return results
-    if n_workers == 1 or len(todo) <= 1:
-        for spec in todo:
-            finish(spec, run_spec(spec))
-        return results
-    with ProcessPoolExecutor(max_workers=min(n_workers, len(todo))) as pool:
-        futures = {pool.submit(run_spec, spec): spec for spec in todo}
-        for future in as_completed(futures):
-            finish(futures[future], future.result())
-    return results
+    def load(path: Path) -> tuple[dict[str, Any], dict[str, Any] | None]:
+        data = json.loads(path.read_text())
+        return data["result"], data.get("record")
+
+    return JobKind(run=run, key=key, record=record, save=save, load=load, unit=unit)
 
 
 def _run_on_ray(
-    todo: Sequence[TrialSpec],
+    todo: Sequence[J],
+    run: Callable[[J], R],
     workers: int | None,
-    finish: Callable[[TrialSpec, TrialResult], None],
+    finish: Callable[[J, R], None],
 ) -> None:
     """Run `todo` as Ray tasks (one CPU each), finishing each result as soon as it arrives."""
     if not todo:
@@ -181,9 +266,17 @@ def _run_on_ray(
         if address:
             ray.init(address=address, log_to_driver=False)
         else:
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
-    task = ray.remote(num_cpus=1)(run_spec)
-    pending = {task.remote(spec): spec for spec in todo}
+            # Local workers see the driver's import path, so job functions defined in scripts
+            # (e.g. benchmarks/interference.py) import there as they do here.
+            path = os.pathsep.join(p for p in sys.path if p)
+            ray.init(
+                num_cpus=workers,
+                include_dashboard=False,
+                log_to_driver=False,
+                runtime_env={"env_vars": {"PYTHONPATH": path}},
+            )
+    task = ray.remote(num_cpus=1)(run)
+    pending = {task.remote(job): job for job in todo}
     try:
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)

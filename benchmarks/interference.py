@@ -33,7 +33,9 @@ per seed, mean(switch tasks into c) - mean(own tasks on c), absolute and relativ
 mean; mean over seeds with a Student-t interval.
 
 Writes `interference.{csv,md,json}`, `interference_runs.csv` (one row per run and group, written
-as runs finish) and `interference.png` (if matplotlib is installed) into `--out`.
+as runs finish) and `interference.png` (if matplotlib is installed) into `--out`. Runs go through
+the package's sweep runner (`--workers`, `--backend local|ray`) and are kept in `--out`/cache/ as
+they finish, so an interrupted benchmark resumes.
 
     python benchmarks/interference.py             # 130 runs: 5 seeds x 3 simulated h, ~3-5 min
     python benchmarks/interference.py --quick
@@ -43,10 +45,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
 from collections import defaultdict
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -56,6 +58,7 @@ from _common import (
     RESULTS_DIR,
     CsvAppender,
     add_override_option,
+    add_sweep_options,
     bootstrap_ratio_ci,
     fmt_ci,
     have_matplotlib,
@@ -68,6 +71,7 @@ from _common import (
 )
 
 import tavc_env
+from agents.sweep import json_jobs, run_jobs
 from tavc_env.simulation import Simulation
 from tavc_env.tasks import Mode
 
@@ -160,6 +164,19 @@ def run_job(job: Job) -> dict[str, Any]:
         "classes": classes,
         "mode_ticks": mode_ticks,
     }
+
+
+def run_job_rows(job: Job) -> dict[str, Any]:
+    """One run reduced to its per-group rows (JSON data, what the sweep runner saves)."""
+    return {"rows": run_rows(run_job(job))}
+
+
+def job_key(job: Job) -> str:
+    label = re.sub(r"[^A-Za-z0-9_.=-]+", "-", job.label).strip("-")
+    return f"{job.experiment}_{label}_s{job.seed}"
+
+
+RUNS = json_jobs(run_job_rows, job_key, unit="run")
 
 
 # -- job lists ---------------------------------------------------------------------------------
@@ -793,7 +810,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--seeds", type=int, default=5, help="seeds per configuration (default 5)")
     p.add_argument("--hours", type=float, default=3.0, help="simulated hours per run (default 3)")
-    p.add_argument("--workers", type=int, default=2, help="parallel processes (at most 2)")
+    add_sweep_options(p)
     p.add_argument("--warmup-min", type=float, default=10.0, help="warm-up, simulated minutes")
     p.add_argument("--skip-first", type=int, default=2, help="tasks discarded per robot")
     p.add_argument("--switch-every", type=int, default=3, help="switcher's block length (tasks)")
@@ -804,7 +821,6 @@ def main(argv: list[str] | None = None) -> int:
     args.arena = tuple(sorted(parsed_overrides(p, args).items()))
     if args.quick:
         args.seeds, args.hours, args.warmup_min, args.skip_first = 2, 0.12, 0.5, 1
-    args.workers = max(1, min(args.workers, 2))
     args.seed_list = list(range(args.seeds))
     if args.switch_every < 2:
         p.error("--switch-every must be >= 2 (a block needs own-circuit tasks to compare with)")
@@ -823,19 +839,21 @@ def main(argv: list[str] | None = None) -> int:
     runs_csv = CsvAppender(args.out / "interference_runs.csv", RUN_FIELDS)
     rows: list[dict[str, Any]] = []
     wall0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = [pool.submit(run_job, j) for j in jobs]
-        for k, fut in enumerate(as_completed(futures), 1):
-            res = fut.result()
-            new = run_rows(res)
-            for r in new:
-                runs_csv.write(r)
-            rows += new
-            if k % 10 == 0 or k == len(jobs):
-                print(
-                    f"{k}/{len(jobs)} runs done, {time.perf_counter() - wall0:.0f} s wall",
-                    flush=True,
-                )
+
+    def collect(job: Job, result: dict[str, Any], resumed: bool) -> None:
+        for r in result["rows"]:
+            runs_csv.write(r)
+        rows.extend(result["rows"])
+
+    run_jobs(
+        jobs,
+        RUNS,
+        args.out / "cache" / "interference",
+        workers=args.workers,
+        on_done=collect,
+        progress_bar=True,
+        backend=args.backend,
+    )
     runs_csv.close()
     wall = time.perf_counter() - wall0
 

@@ -12,7 +12,8 @@ Exits with status 1 if any robot's longest gap exceeds `--max-gap-min` (default 
 minutes): a robot that stops completing tasks is a jam or a stuck robot.
 
 Writes `long_run.{csv,md,json}` (per robot summary) and `long_run_tasks_seed<S>.csv` (every
-completion, written as the run goes) into `--out`.
+completion, written as the run goes) into `--out`. Seeds run through the package's sweep runner
+(`--workers`, `--backend local|ray`) and are kept in `--out`/cache/, so a rerun resumes.
 
     python benchmarks/long_run.py                 # 15 simulated hours, seeds 0-3 (~1-2 min wall)
     python benchmarks/long_run.py --quick         # smoke run
@@ -21,10 +22,11 @@ completion, written as the run goes) into `--out`.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +34,7 @@ import numpy as np
 from _common import (
     RESULTS_DIR,
     CsvAppender,
+    add_sweep_options,
     fmt_ci,
     markdown_table,
     run_metadata,
@@ -39,6 +42,7 @@ from _common import (
 )
 
 import tavc_env
+from agents.sweep import json_jobs, run_jobs
 from tavc_env.navigation import STUCK_PATIENCE_S
 from tavc_env.tasks import PHASE_NAMES, Mode, Phase
 
@@ -94,6 +98,25 @@ class TickMonitor:
         if c < self.min_wall:
             self.min_wall = c
             self.min_wall_at = {"time_s": round(self.ticks * dt, 1)}
+
+
+@dataclass(frozen=True)
+class LongRun:
+    seed: int
+    hours: float
+    out_dir: str
+    quiet: bool = True
+
+
+def run_long(job: LongRun) -> dict[str, Any]:
+    """One seed's run as JSON data (what the sweep runner saves)."""
+    result: dict[str, Any] = json.loads(
+        json.dumps(run_seed(job.seed, job.hours, job.out_dir, job.quiet), default=float)
+    )
+    return result
+
+
+RUNS = json_jobs(run_long, lambda job: f"seed{job.seed}_{job.hours:g}h", unit="seed")
 
 
 def run_seed(seed: int, hours: float, out_dir: str, quiet: bool) -> dict[str, Any]:
@@ -232,7 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=4, help="number of seeds (seed0..); default 4")
     p.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
     p.add_argument("--hours", type=float, default=15.0, help="simulated hours per seed")
-    p.add_argument("--workers", type=int, default=2, help="parallel processes (at most 2)")
+    add_sweep_options(p)
     p.add_argument("--max-gap-min", type=float, default=30.0, help="fail above this gap (min)")
     p.add_argument("--out", type=Path, default=RESULTS_DIR, help="output directory")
     p.add_argument("--quick", action="store_true", help="smoke run: 0.25 h, 1 seed")
@@ -240,22 +263,20 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.quick:
         args.hours, args.seeds = 0.25, 1
-    args.workers = max(1, min(args.workers, 2, args.seeds))
     seeds = list(range(args.seed0, args.seed0 + args.seeds))
     max_gap_s = args.max_gap_min * 60.0
     args.out.mkdir(parents=True, exist_ok=True)
 
     wall0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        results = list(
-            pool.map(
-                run_seed,
-                seeds,
-                [args.hours] * len(seeds),
-                [str(args.out)] * len(seeds),
-                [args.quiet] * len(seeds),
-            )
-        )
+    done = run_jobs(
+        [LongRun(seed, args.hours, str(args.out), args.quiet) for seed in seeds],
+        RUNS,
+        args.out / "cache" / "long_run",
+        workers=args.workers,
+        progress_bar=not args.quiet,
+        backend=args.backend,
+    )
+    results = [done[f"seed{seed}_{args.hours:g}h"] for seed in seeds]
     wall = time.perf_counter() - wall0
 
     rows = [r for res in results for r in res["robots"]]

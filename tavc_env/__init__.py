@@ -16,6 +16,7 @@ from tavc_env.config import (
     make_config,
     preset,
     robots_from_speeds,
+    scaled_config,
 )
 from tavc_env.env import ENV_NAME, TavcArenaEnv, env, parallel_env, raw_env
 from tavc_env.registration import REGISTRY_ID, register
@@ -43,4 +44,5 @@ __all__ = [
     "preset",
     "raw_env",
     "robots_from_speeds",
+    "scaled_config",
 ]

@@ -450,3 +450,53 @@ def robots_from_speeds(speeds: Sequence[float]) -> tuple[Robot, ...]:
         "fast" if s > mean + 1e-9 else "slow" if s < mean - 1e-9 else "medium" for s in speeds
     ]
     return tuple(Robot(float(s), label) for s, label in zip(speeds, labels))
+
+
+def scaled_config(
+    n_circuits: int,
+    robots_per_circuit: int = 3,
+    speeds: Sequence[float] = (0.30, 0.20),
+    lane_spacing_m: float = 9.0,
+) -> ArenaConfig:
+    """A `dahl2004`-like arena scaled up: `n_circuits` lanes `lane_spacing_m` apart (9 m, as in
+    `dahl2004`), `n_circuits * robots_per_circuit` robots with top speeds cycling through `speeds`
+    (fast, slow, fast, ... by default), circuit values falling by 10 from 2200.
+
+    The arena is made as tall as it must be (from the paper's 8 m, in steps of 2 m up to 80 m) for
+    every station's waiting line to hold every other robot (the validation of `ArenaConfig`); if
+    no height up to 80 m is enough, the lanes are moved further apart (x1.5, 2, 3, 4).
+    """
+    require(is_integer(n_circuits) and n_circuits >= 1, "n_circuits", n_circuits, "an integer >= 1")
+    require(
+        is_integer(robots_per_circuit) and robots_per_circuit >= 1,
+        "robots_per_circuit",
+        robots_per_circuit,
+        "an integer >= 1",
+    )
+    require(
+        is_number(lane_spacing_m) and lane_spacing_m >= 3.0,
+        "lane_spacing_m",
+        lane_spacing_m,
+        "a spacing >= 3 m",
+    )
+    n = n_circuits * robots_per_circuit
+    robots = robots_from_speeds([speeds[i % len(speeds)] for i in range(n)])
+    values = [2200.0 - 10.0 * i for i in range(n_circuits)]
+    last_error: ValueError | None = None
+    for spacing in (lane_spacing_m * f for f in (1.0, 1.5, 2.0, 3.0, 4.0)):
+        width = 3.0 + spacing * max(n_circuits - 1, 1)
+        for height in range(8, 82, 2):
+            try:
+                return ArenaConfig(
+                    width=width,
+                    height=float(height),
+                    circuits=lane_circuits(
+                        n_circuits, width=width, height=float(height), values=values
+                    ),
+                    robots=robots,
+                )
+            except ValueError as error:  # only a waiting line too short is worth a bigger arena
+                if "waiting line" not in str(error):
+                    raise
+                last_error = error
+    raise ValueError(f"no arena with lanes up to 4 x {lane_spacing_m} m apart fits: {last_error}")

@@ -15,9 +15,13 @@ from tavc_env.config import ArenaConfig
 from tavc_env.navigation import (
     ESCAPE_DISTANCE_M,
     ESCAPE_TIME_S,
+    GRID_MIN_ROBOTS,
     STUCK_PATIENCE_S,
     Navigator,
-    arrivals,
+    after_step,
+    neighbour_cell_m,
+    steer_all,
+    steer_all_grid,
     stuck,
 )
 from tavc_env.tasks import Completion, Mode, Phase, TaskCycle
@@ -49,6 +53,15 @@ class Simulation:
         self.heading = np.zeros(n)
         self._pos = np.zeros((n, 2))  # positions after the last physics step
         self._hits = np.zeros(n, dtype=np.int64)
+        self._stalled = np.zeros(n, dtype=np.int64)
+        self._next_heading = np.zeros(n)
+        self._next_service = math.inf  # earliest end of a loading / unloading
+        # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
+        self._grid_cell = (
+            neighbour_cell_m(config.robot_radius, config.sensing_range_m)
+            if n >= GRID_MIN_ROBOTS
+            else 0.0
+        )
         self._anchor = np.zeros((n, 2))  # where each robot last made progress ...
         self._anchor_time = np.zeros(n)  # ... and when
         self._escape_until = np.zeros(n)  # end of a robot's escape manoeuvre (0: none)
@@ -94,6 +107,7 @@ class Simulation:
             (b.at_s, 0, b.robot, -1.0 if b.repair_after_s is None else b.repair_after_s)
             for b in cfg.breakdowns
         )
+        self._next_service = math.inf
 
     # -- decisions and failures ----------------------------------------------------------------
     def choose(self, robot: int, circuit: int) -> None:
@@ -114,6 +128,7 @@ class Simulation:
             return
         self.tasks.break_down(robot)
         self.world.remove_robot(robot)
+        self._next_service = float(self.tasks.service_until.min())
 
     def schedule_repair(self, robot: int) -> None:
         """Repair `robot` at the end of the next tick, so the repair is a decision epoch like any
@@ -151,36 +166,71 @@ class Simulation:
     def _tick(self, out: Advance) -> None:
         dt = self.config.dt
         tasks = self.tasks
+        nav = self.nav
         target = tasks.target
         if self.escapes and self._escape_until.max() > self.time_s:
             target = np.where(
                 (self._escape_until > self.time_s)[:, None], self._escape_target, tasks.target
             )
-        cmd = self.nav.command(
-            self._pos, self.heading, target, tasks.moving, self.top_speed, self.world.in_space
+        args = (
+            self._pos,
+            self.heading,
+            target,
+            tasks.moving,
+            self.top_speed,
+            self.world.in_space,
+            nav.radius,
+            nav.sensing,
+            nav.turn_step,
+            nav.width,
+            nav.height,
+            self.world.velocity_out(),
+            self._next_heading,
         )
-        self.heading = cmd.heading
-        self.world.set_velocities(cmd.velocity)
+        if self._grid_cell > 0:
+            steer_all_grid(*args, self._grid_cell)
+        else:
+            steer_all(*args)
+        self.heading, self._next_heading = self._next_heading, self.heading
+        self.world.push_velocities()
         self.world.step(dt)
         self._pos = self.world.positions()
         self.ticks += 1
         self.time_s = self.ticks * dt
         now = self.time_s
 
-        if tasks.service_until.min() <= now + 1e-9:
+        # Most ticks nothing happens: one compiled call checks arrivals and stuck robots. When
+        # something does, the checks run in the order events change the task state.
+        services_due = self._next_service <= now + 1e-9
+        schedule_due = bool(self._schedule) and self._schedule[0][0] <= now + 1e-9
+        if services_due:
             for i in np.flatnonzero(tasks.service_until <= now + 1e-9):
                 completion = tasks.finish_service(int(i), now)
                 if completion is None:
                     self._new_leg(int(i))
                 else:
                     out.completions.append(completion)
-        for k in range(arrivals(self._pos, tasks.target, tasks.trigger, self._hits)):
+        n_arrived, n_stalled = after_step(
+            self._pos,
+            tasks.target,
+            tasks.trigger,
+            tasks.moving,
+            self.world.in_space,
+            self._anchor,
+            self._anchor_time,
+            now,
+            STUCK_PATIENCE_S,
+            not schedule_due,
+            self._hits,
+            self._stalled,
+        )
+        for k in range(n_arrived):
             tasks.arrive(int(self._hits[k]), now)
-        if self._schedule and self._schedule[0][0] <= now + 1e-9:
+        if schedule_due:
             self._run_schedule(now, out)
-        active = tasks.moving & self.world.in_space
-        for k in range(
-            stuck(
+        if n_stalled < 0:
+            active = tasks.moving & self.world.in_space
+            n_stalled = stuck(
                 self._pos,
                 tasks.target,
                 active,
@@ -188,10 +238,12 @@ class Simulation:
                 self._anchor_time,
                 now,
                 STUCK_PATIENCE_S,
-                self._hits,
+                self._stalled,
             )
-        ):
-            self._escape(int(self._hits[k]), now)
+        for k in range(n_stalled):
+            self._escape(int(self._stalled[k]), now)
+        if services_due or n_arrived or schedule_due:
+            self._next_service = float(tasks.service_until.min())
 
     def _escape(self, robot: int, now: float) -> None:
         """Start robot's escape: away from the robots around it, in a direction jittered by the

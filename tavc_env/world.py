@@ -3,6 +3,10 @@
 Robots are dynamic discs with infinite moment (they do not spin on contact; their heading is the
 controller's state). The controller sets each robot's velocity every tick and pymunk resolves the
 contacts, so robots that drive into each other are stopped and pushed apart physically.
+
+Positions are read and velocities written every tick for all robots at once through pymunk's batch
+API (one C call each instead of a Python attribute access per body, which dominated the tick). The
+batch visits bodies in the space's own order, so the world keeps the slot of each robot in it.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ import math
 
 import numpy as np
 import pymunk
+import pymunk.batch
 
 from tavc_env.config import ArenaConfig
 
@@ -52,6 +57,51 @@ class World:
             self.shapes.append(shape)
             self.space.add(body, shape)
         self.in_space = np.ones(len(self.bodies), dtype=bool)
+        n = len(self.bodies)
+        self._pos = np.zeros((n, 2))  # last known centres (a body off the floor keeps its own)
+        # Batch buffers over numpy memory: pymunk reads velocities from and writes positions into
+        # them directly. One row per body the batch visits (the robots in the space, plus the
+        # static body of the walls); room for one more row so pymunk never has to grow them.
+        self._get = pymunk.batch.Buffer()
+        self._positions_in = np.zeros((n + 2, 2))
+        self._get.set_float_buf(self._positions_in.reshape(-1))
+        self._set = pymunk.batch.Buffer()
+        self._velocities_in = np.zeros((n + 2, 2))
+        self._velocity_out = np.zeros((n, 2))
+        self._reindex()
+
+    def __getstate__(self) -> dict[str, object]:
+        # pymunk's batch buffers are C data: not picklable; rebuilt on unpickling
+        state = self.__dict__.copy()
+        del state["_get"], state["_set"]
+        return state
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self._get = pymunk.batch.Buffer()
+        self._get.set_float_buf(self._positions_in.reshape(-1))
+        self._set = pymunk.batch.Buffer()
+        self._reindex()  # bodies are new C objects: find their slots again
+
+    def _reindex(self) -> None:
+        """Find each robot's slot in the batch order (after bodies enter or leave the space)."""
+        self._get.clear()
+        pymunk.batch.get_space_bodies(self.space, pymunk.batch.BodyFields.BODY_ID, self._get)
+        ids = np.frombuffer(self._get.int_buf(), dtype=np.uintp)
+        slot_of_id = {int(body_id): k for k, body_id in enumerate(ids)}
+        self._robots_in = np.flatnonzero(self.in_space)
+        self._slots = np.array(
+            [slot_of_id[self.bodies[i].id] for i in self._robots_in], dtype=np.intp
+        )
+        self._visited = len(ids)
+        # the common case, every robot in the space in index order: plain slices, no scatter
+        self._in_order = len(self._robots_in) == self.n and bool(
+            np.all(self._slots == np.arange(self.n))
+        )
+        self._velocities_in[:] = 0.0  # the static body (and robots off the floor) stay still
+        self._set.set_float_buf(self._velocities_in[: self._visited].reshape(-1))
+        for i, body in enumerate(self.bodies):
+            self._pos[i] = tuple(body.position)
 
     @property
     def n(self) -> int:
@@ -64,18 +114,35 @@ class World:
             body.velocity = (0.0, 0.0)
         for body in self.bodies:
             self.space.reindex_shapes_for_body(body)
+        self._reindex()
 
     def positions(self) -> np.ndarray:
-        """Robot centres, shape (n, 2)."""
-        return np.array([tuple(b.position) for b in self.bodies], dtype=np.float64)
+        """Robot centres, shape (n, 2) (a robot off the floor: where it left)."""
+        self._get.clear()
+        pymunk.batch.get_space_bodies(self.space, pymunk.batch.BodyFields.POSITION, self._get)
+        if self._in_order:
+            return self._positions_in[: self.n].copy()
+        self._pos[self._robots_in] = self._positions_in[self._slots]
+        return self._pos.copy()
 
     def velocities(self) -> np.ndarray:
         """Robot velocities, shape (n, 2)."""
         return np.array([tuple(b.velocity) for b in self.bodies], dtype=np.float64)
 
+    def velocity_out(self) -> np.ndarray:
+        """The (n, 2) array to write this tick's velocities into before `push_velocities`."""
+        return self._velocities_in[: self.n] if self._in_order else self._velocity_out
+
+    def push_velocities(self) -> None:
+        """Give every robot on the floor the velocity written into `velocity_out()`."""
+        if not self._in_order:
+            self._velocities_in[self._slots] = self._velocity_out[self._robots_in]
+        pymunk.batch.set_space_bodies(self.space, pymunk.batch.BodyFields.VELOCITY, self._set)
+
     def set_velocities(self, velocities: np.ndarray) -> None:
-        for body, v in zip(self.bodies, velocities.tolist()):
-            body.velocity = v
+        """Set every robot's velocity (rows of robots off the floor are ignored)."""
+        self.velocity_out()[:] = velocities
+        self.push_velocities()
 
     def step(self, dt: float) -> None:
         self.space.step(dt)
@@ -86,6 +153,7 @@ class World:
             self.bodies[i].velocity = (0.0, 0.0)
             self.space.remove(self.bodies[i], self.shapes[i])
             self.in_space[i] = False
+            self._reindex()
 
     def restore_robot(self, i: int, rng: np.random.Generator) -> None:
         """Put robot i back where it was, or at the nearest free spot if someone stands there now."""
@@ -98,6 +166,7 @@ class World:
         body.velocity = (0.0, 0.0)
         self.space.add(body, self.shapes[i])
         self.in_space[i] = True
+        self._reindex()
 
     def free_spot_near(
         self, point: np.ndarray, exclude: int, rng: np.random.Generator

@@ -13,13 +13,14 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from agents.runner import TrialResult
-from agents.sweep import TrialSpec, result_path, run_sweep
+from agents.sweep import TrialSpec, json_jobs, result_path, run_jobs, run_sweep
 
 TINY = {"convergence_s": 120.0, "measured_s": 240.0}
 ENV = {"preset": "dahl2004"}
@@ -116,3 +117,46 @@ def test_unknown_backend_raises(tmp_path: Path) -> None:
         ValueError, match=r"backend = 'dask' is invalid; allowed: \['local', 'ray'\]"
     ):
         run_sweep(specs(1), tmp_path, backend="dask")
+
+
+@dataclass(frozen=True)
+class Square:
+    x: int
+    scale: float = 1.0
+
+
+def square(job: Square) -> dict[str, Any]:
+    return {"value": job.x * job.x * job.scale}
+
+
+SQUARES = json_jobs(square, lambda job: f"sq{job.x}", unit="square")
+
+
+def test_json_jobs_save_resume_and_refuse_other_settings(tmp_path: Path) -> None:
+    jobs = [Square(x) for x in range(5)]
+    done: list[tuple[str, bool]] = []
+    first = run_jobs(
+        jobs,
+        SQUARES,
+        tmp_path,
+        workers=2,
+        on_done=lambda j, r, was: done.append((SQUARES.key(j), was)),
+    )
+    assert first == {f"sq{x}": {"value": float(x * x)} for x in range(5)}
+    assert sorted(done) == [(f"sq{x}", False) for x in range(5)]
+    (tmp_path / "sq3.json").unlink()
+    done.clear()
+    again = run_jobs(
+        jobs,
+        SQUARES,
+        tmp_path,
+        workers=1,
+        on_done=lambda j, r, was: done.append((SQUARES.key(j), was)),
+    )
+    assert again == first and sorted(k for k, was in done if not was) == ["sq3"]
+    with pytest.raises(
+        ValueError, match=r"sq0.json holds square 'sq0' run with different settings"
+    ):
+        run_jobs([Square(0, scale=2.0)], SQUARES, tmp_path, workers=1)
+    with pytest.raises(ValueError, match=r"duplicate square keys \['sq1'\]"):
+        run_jobs([Square(1), Square(1, 2.0)], SQUARES, tmp_path / "other", workers=1)
