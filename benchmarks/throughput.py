@@ -17,7 +17,8 @@ hits them alike; reported are the means, the best repeat, the ratio env / floor 
 paired by repeat), and the peak resident memory of the size's process. Goals (issue 5): 6 robots
 at least 15 000x real time and 30 % of the floor; 96 robots at least 1 500x.
 
-    python benchmarks/throughput.py                # ~3 min
+    python benchmarks/throughput.py                # ~2 min
+    python benchmarks/throughput.py --dt 0.2 --out benchmarks/results/throughput_dt0.2
     python benchmarks/throughput.py --quick
 """
 
@@ -44,11 +45,10 @@ GOALS = {6: 15_000.0, 96: 1_500.0}
 FLOOR_GOAL = 0.30
 
 
-def config_for(robots: int) -> Any:
+def config_for(robots: int, dt: float | None = None) -> Any:
     lanes = SIZES[robots]
-    if lanes is None:
-        return tavc_env.make_config("dahl2004")
-    return tavc_env.scaled_config(lanes, 3)
+    config = tavc_env.make_config("dahl2004") if lanes is None else tavc_env.scaled_config(lanes, 3)
+    return config if dt is None else config.replace(dt=dt)
 
 
 def measure_env(config: Any, seed: int, sim_s: float) -> dict[str, float]:
@@ -88,9 +88,11 @@ def measure_floor(config: Any, seed: int, ticks: int, each_tick: bool) -> dict[s
     return {"wall_s": wall, "sim_s": ticks * dt, "ticks": ticks, "decisions": 0}
 
 
-def run_size(robots: int, repeats: int, hours_scale: float) -> dict[str, Any]:
+def run_size(
+    robots: int, repeats: int, hours_scale: float, dt: float | None = None
+) -> dict[str, Any]:
     """Everything for one team size (run in its own process)."""
-    config = config_for(robots)
+    config = config_for(robots, dt)
     sim_s = SIM_HOURS[robots] * 3600.0 * hours_scale
     measure_env(config, 10**6, min(sim_s, 600.0))  # untimed: imports, numba, caches
     rows = []
@@ -120,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--sizes", type=int, nargs="+", default=list(SIZES), choices=list(SIZES))
     p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--dt", type=float, default=None, help="physics step (default: the package's)")
     p.add_argument("--out", type=Path, default=RESULTS_DIR, help="output directory")
     p.add_argument("--quick", action="store_true", help="smoke run: 2 repeats, short runs")
     args = p.parse_args(argv)
@@ -137,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     for robots in args.sizes:
         # one fresh process per size, one at a time: figures are per core, memory per size
         with ProcessPoolExecutor(max_workers=1) as pool:
-            sizes.append(pool.submit(run_size, robots, args.repeats, scale).result())
+            sizes.append(pool.submit(run_size, robots, args.repeats, scale, args.dt).result())
         print(f"{robots} robots done ({time.perf_counter() - wall0:.0f} s)", flush=True)
     meta["wall_time_s"] = time.perf_counter() - wall0
 
