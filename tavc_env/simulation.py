@@ -54,7 +54,10 @@ class Simulation:
         self._pos = np.zeros((n, 2))  # positions after the last physics step
         self._hits = np.zeros(n, dtype=np.int64)
         self._stalled = np.zeros(n, dtype=np.int64)
-        self._next_heading = np.zeros(n)
+        self._dt = config.dt
+        self._steer = steer_all
+        self._steer_args: tuple[object, ...] = ()
+        self._bound: tuple[object, ...] = (None,) * 4
         self._next_service = math.inf  # earliest end of a loading / unloading
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
@@ -95,7 +98,8 @@ class Simulation:
             positions[i] = sink.dock if k == 0 else sink.slots[k - 1]
             self.tasks.start(int(i), c)
         self.world.place(positions)
-        self._pos = self.world.positions()
+        self.world.sync_positions()
+        self._pos = self.world.pos
         self._anchor = self._pos.copy()
         self._anchor_time = np.zeros(n)
         self._escape_until = np.zeros(n)
@@ -128,6 +132,7 @@ class Simulation:
             return
         self.tasks.break_down(robot)
         self.world.remove_robot(robot)
+        self._pos = self.world.pos  # the world may now keep positions in another array
         self._next_service = float(self.tasks.service_until.min())
 
     def schedule_repair(self, robot: int) -> None:
@@ -140,7 +145,8 @@ class Simulation:
         if self.tasks.phase[robot] != Phase.BROKEN:
             return
         self.world.restore_robot(robot, self.rng)
-        self._pos = self.world.positions()
+        self.world.sync_positions()
+        self._pos = self.world.pos
         self.tasks.repair(robot)
         # Any other repair still scheduled for this robot belongs to a breakdown that is over.
         self._schedule = [e for e in self._schedule if not (e[1] == 1 and e[2] == robot)]
@@ -163,40 +169,54 @@ class Simulation:
         out.duration_s = self.time_s - start
         return out
 
-    def _tick(self, out: Advance) -> None:
-        dt = self.config.dt
-        tasks = self.tasks
-        nav = self.nav
-        target = tasks.target
-        if self.escapes and self._escape_until.max() > self.time_s:
-            target = np.where(
-                (self._escape_until > self.time_s)[:, None], self._escape_target, tasks.target
-            )
+    def _bind(self) -> None:
+        """Fix the steering call's arguments: the same arrays every tick (updated in place),
+        rebuilt after a reset or when robots leave or re-enter the floor."""
+        world, nav, tasks = self.world, self.nav, self.tasks
+        self._pos = world.pos
         args = (
-            self._pos,
-            self.heading,
-            target,
+            world.pos,
+            self.heading,  # read and written in place: each robot reads only its own
+            tasks.target,
             tasks.moving,
             self.top_speed,
-            self.world.in_space,
+            world.in_space,
             nav.radius,
             nav.sensing,
             nav.turn_step,
             nav.width,
             nav.height,
-            self.world.velocity_out(),
-            self._next_heading,
+            world.velocity_out,
+            self.heading,
         )
         if self._grid_cell > 0:
-            steer_all_grid(*args, self._grid_cell)
+            self._steer, self._steer_args = steer_all_grid, (*args, self._grid_cell)
         else:
-            steer_all(*args)
-        self.heading, self._next_heading = self._next_heading, self.heading
-        self.world.push_velocities()
-        self.world.step(dt)
-        self._pos = self.world.positions()
+            self._steer, self._steer_args = steer_all, args
+        self._bound = (world.version, tasks, self.heading, self.top_speed)
+
+    def _tick(self, out: Advance) -> None:
+        world, tasks = self.world, self.tasks
+        bound = self._bound
+        if (
+            bound[0] != world.version
+            or bound[1] is not tasks
+            or bound[2] is not self.heading
+            or bound[3] is not self.top_speed
+        ):
+            self._bind()
+        if self.escapes and self._escape_until.max() > self.time_s:
+            escaping = (self._escape_until > self.time_s)[:, None]
+            args = list(self._steer_args)
+            args[2] = np.where(escaping, self._escape_target, tasks.target)
+            self._steer(*args)
+        else:
+            self._steer(*self._steer_args)
+        world.push_velocities()
+        world.step(self._dt)
+        world.sync_positions()
         self.ticks += 1
-        self.time_s = self.ticks * dt
+        self.time_s = self.ticks * self._dt
         now = self.time_s
 
         # Most ticks nothing happens: one compiled call checks arrivals and stuck robots. When

@@ -16,9 +16,14 @@ import math
 import numpy as np
 import pymunk
 import pymunk.batch
+from pymunk._chipmunk_cffi import ffi as _ffi
+from pymunk._chipmunk_cffi import lib as _lib
 
 from tavc_env.config import ArenaConfig
 
+# pymunk's own C iterators behind pymunk.batch (pymunk 7; pinned < 8 in pyproject.toml)
+_GET_BODIES = _ffi.addressof(_lib, "pmSpaceBodyGetIteratorFuncBatched")
+_SET_BODIES = _ffi.addressof(_lib, "pmSpaceBodySetIteratorFuncBatched")
 ROBOT_MASS_KG = 9.0  # a Pioneer 2DX weighs about 9 kg
 WALL_THICKNESS_M = 0.05
 ROBOT_CATEGORY = 0b01
@@ -62,25 +67,39 @@ class World:
         # Batch buffers over numpy memory: pymunk reads velocities from and writes positions into
         # them directly. One row per body the batch visits (the robots in the space, plus the
         # static body of the walls); room for one more row so pymunk never has to grow them.
-        self._get = pymunk.batch.Buffer()
         self._positions_in = np.zeros((n + 2, 2))
-        self._get.set_float_buf(self._positions_in.reshape(-1))
-        self._set = pymunk.batch.Buffer()
         self._velocities_in = np.zeros((n + 2, 2))
         self._velocity_out = np.zeros((n, 2))
+        self.version = 0  # bumped whenever robots' slots or the arrays below change
+        self._bind_batch()
         self._reindex()
+
+    def _bind_batch(self) -> None:
+        """Prepare the two batch calls once. They are `pymunk.batch.get_space_bodies` and
+        `set_space_bodies` (pymunk 7) with the C argument block built here instead of on every
+        call, which was most of their cost."""
+        self._get = pymunk.batch.Buffer()
+        self._get.set_float_buf(self._positions_in.reshape(-1))
+        self._set = pymunk.batch.Buffer()
+        self._get_args = _ffi.new("pmBatchedData *")
+        self._get_args.fields = pymunk.batch.BodyFields.POSITION.value
+        self._get_args.floatArray = self._get._float_arr
+        self._get_args.intArray = self._get._int_arr
+        self._set_args = _ffi.new("pmBatchedData *")
+        self._set_args.fields = pymunk.batch.BodyFields.VELOCITY.value
+        self._set_args.intArray = self._set._int_arr
+        self._space_ptr = self.space._space
 
     def __getstate__(self) -> dict[str, object]:
         # pymunk's batch buffers are C data: not picklable; rebuilt on unpickling
         state = self.__dict__.copy()
-        del state["_get"], state["_set"]
+        for key in ("_get", "_set", "_get_args", "_set_args", "_space_ptr", "pos"):
+            del state[key]
         return state
 
     def __setstate__(self, state: dict[str, object]) -> None:
         self.__dict__.update(state)
-        self._get = pymunk.batch.Buffer()
-        self._get.set_float_buf(self._positions_in.reshape(-1))
-        self._set = pymunk.batch.Buffer()
+        self._bind_batch()
         self._reindex()  # bodies are new C objects: find their slots again
 
     def _reindex(self) -> None:
@@ -100,8 +119,16 @@ class World:
         )
         self._velocities_in[:] = 0.0  # the static body (and robots off the floor) stay still
         self._set.set_float_buf(self._velocities_in[: self._visited].reshape(-1))
+        self._set_args.floatArray = self._set._float_arr
         for i, body in enumerate(self.bodies):
             self._pos[i] = tuple(body.position)
+        if self._in_order:
+            self._positions_in[: self.n] = self._pos
+        # `pos`: the robots' centres after the last `sync_positions`, always the same array
+        # until the next reindex (a view of pymunk's output when no scatter is needed)
+        self.pos = self._positions_in[: self.n] if self._in_order else self._pos
+        self.velocity_out = self._velocities_in[: self.n] if self._in_order else self._velocity_out
+        self.version += 1
 
     @property
     def n(self) -> int:
@@ -116,32 +143,35 @@ class World:
             self.space.reindex_shapes_for_body(body)
         self._reindex()
 
+    def sync_positions(self) -> None:
+        """Read every robot's centre from pymunk into `pos`."""
+        self._get._float_arr.num = 0
+        _lib.cpSpaceEachBody(self._space_ptr, _GET_BODIES, self._get_args)
+        if not self._in_order:
+            self._pos[self._robots_in] = self._positions_in[self._slots]
+
     def positions(self) -> np.ndarray:
-        """Robot centres, shape (n, 2) (a robot off the floor: where it left)."""
-        self._get.clear()
-        pymunk.batch.get_space_bodies(self.space, pymunk.batch.BodyFields.POSITION, self._get)
-        if self._in_order:
-            return self._positions_in[: self.n].copy()
-        self._pos[self._robots_in] = self._positions_in[self._slots]
-        return self._pos.copy()
+        """Robot centres, shape (n, 2) (a robot off the floor: where it left); a copy."""
+        self.sync_positions()
+        return self.pos.copy()
 
     def velocities(self) -> np.ndarray:
         """Robot velocities, shape (n, 2)."""
         return np.array([tuple(b.velocity) for b in self.bodies], dtype=np.float64)
 
-    def velocity_out(self) -> np.ndarray:
-        """The (n, 2) array to write this tick's velocities into before `push_velocities`."""
-        return self._velocities_in[: self.n] if self._in_order else self._velocity_out
-
     def push_velocities(self) -> None:
-        """Give every robot on the floor the velocity written into `velocity_out()`."""
+        """Give every robot on the floor the velocity written into `velocity_out`."""
         if not self._in_order:
             self._velocities_in[self._slots] = self._velocity_out[self._robots_in]
-        pymunk.batch.set_space_bodies(self.space, pymunk.batch.BodyFields.VELOCITY, self._set)
+        floats = self._set._float_arr
+        count = floats.num
+        floats.num = 0  # the iterator reads from the start, advancing `num`
+        _lib.cpSpaceEachBody(self._space_ptr, _SET_BODIES, self._set_args)
+        floats.num = count
 
     def set_velocities(self, velocities: np.ndarray) -> None:
         """Set every robot's velocity (rows of robots off the floor are ignored)."""
-        self.velocity_out()[:] = velocities
+        self.velocity_out[:] = velocities
         self.push_velocities()
 
     def step(self, dt: float) -> None:
