@@ -142,13 +142,15 @@ def run_trial(
     label: str = "",
     progress: Callable[[float], None] | None = None,
     events: Sequence[Event] = (),
+    on_step: Callable[[Any], None] | None = None,
     **env_kwargs: Any,
 ) -> TrialResult:
     """Run one trial and return what it recorded.
 
     `policies` maps every agent name to its policy, or is a factory called with each agent name,
     or is a `Team` (a centralised allocator, which also observes every robot's info each step).
-    `events` (breakdowns, repairs, priority changes) are applied at their times.
+    `events` (breakdowns, repairs, priority changes) are applied at their times. `on_step`, if
+    given, is called with the env after every step (e.g. to render frames).
     `env_kwargs` go to `tavc_env.parallel_env` (e.g. `preset="dahl2004"`, config overrides);
     `max_sim_time_s` is set from the two periods. `progress`, if given, is called with the
     simulated time after each step.
@@ -264,6 +266,8 @@ def run_trial(
                 result.delivery_value.append(env.circuit_values[infos[agent]["circuit"]])
         if progress is not None:
             progress(env.sim.time_s)
+        if on_step is not None:
+            on_step(env)
     result.end_s = env.sim.time_s
     result.escapes = env.sim.escapes
     _snapshot(result, table, result.end_s)

@@ -148,6 +148,8 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         self._rng: np.random.Generator | None = None
         self.num_cycles = 0
         self._last_task_time: list[float | None] = [None] * n
+        # deliveries since reset, each counting w_i / max w (the paper's measure, summed)
+        self.delivered_value = 0.0
         self._renderer: Any = None
 
     # -- PettingZoo API ------------------------------------------------------------------------
@@ -166,6 +168,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         self.agents = self.possible_agents[:]
         self.num_cycles = 0
         self._last_task_time = [None] * self.config.n_robots
+        self.delivered_value = 0.0
         return self._observations(), self._infos(truncated=False)
 
     def step(
@@ -319,6 +322,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         for c in out.completions:
             agent = self.possible_agents[c.robot]
             rewards[agent] += float(values[c.circuit] / (c.task_time_s * unit))
+            self.delivered_value += float(values[c.circuit] / values.max())
             self._last_task_time[c.robot] = float(c.task_time_s)
         return rewards
 

@@ -1,9 +1,10 @@
 """Drawing the arena with pygame: a leaf module, imported only when rendering is asked for.
 
-Robots are coloured by speed class (fast red, slow blue, others grey), broken robots are drawn as
-hollow circles, each moving robot has a line to its current target, stations are squares (sources)
-and diamonds (sinks) in their circuit's colour, and a readout shows the simulated time, the number
-of robots per circuit and the delivered value.
+Robots are coloured by speed class (fast red, medium green, slow blue, others grey) with a ring in
+the colour of the circuit they serve; broken robots are hollow circles with a cross; each moving
+robot has a line to its current target; stations are squares (sources) and diamonds (sinks) in
+their circuit's colour. A readout shows the simulated time, the `f:s` state (robots of each class on
+the high-value circuit), the robots per circuit and the delivered value.
 """
 
 from __future__ import annotations
@@ -28,9 +29,9 @@ except ImportError as error:  # pragma: no cover - depends on the installation
 PIXELS_PER_M = 60
 MARGIN_PX = 10
 PANEL_PX = 60
-CLASS_COLOURS = {"fast": (220, 60, 50), "slow": (50, 90, 220)}
+CLASS_COLOURS = {"fast": (220, 60, 50), "medium": (40, 160, 70), "slow": (50, 90, 220)}
 OTHER_COLOUR = (120, 120, 120)
-CIRCUIT_COLOURS = [(230, 160, 20), (40, 170, 90), (150, 70, 190), (20, 160, 200), (200, 80, 140)]
+CIRCUIT_COLOURS = [(230, 160, 20), (150, 70, 190), (20, 160, 200), (140, 90, 40), (200, 80, 140)]
 
 
 class Renderer:
@@ -87,6 +88,10 @@ class Renderer:
                 pygame.draw.line(surf, (180, 180, 180), centre, self._px(sim.tasks.target[i]), 1)
             if broken[i]:
                 pygame.draw.circle(surf, colour, centre, radius, 2)
+                d = int(radius * 0.7)
+                x, y = centre
+                pygame.draw.line(surf, colour, (x - d, y - d), (x + d, y + d), 2)
+                pygame.draw.line(surf, colour, (x - d, y + d), (x + d, y - d), 2)
                 continue
             pygame.draw.circle(surf, colour, centre, radius)
             tip = pos[i] + cfg.robot_radius * np.array(
@@ -96,10 +101,29 @@ class Renderer:
             ring = CIRCUIT_COLOURS[int(sim.tasks.circuit[i]) % len(CIRCUIT_COLOURS)]
             pygame.draw.circle(surf, ring, centre, radius, 3)
         counts = np.bincount(sim.tasks.circuit[~broken], minlength=cfg.n_circuits)
-        hours = sim.time_s / 3600.0
-        text = f"t = {hours:6.2f} h   robots per circuit: {counts.tolist()}   tasks: {int(sim.tasks.completed.sum())}"
-        label = self.font.render(text, True, (20, 20, 20))
-        surf.blit(label, (MARGIN_PX, self.size[1] - PANEL_PX + 15))
+        high = int(np.argmax(sim.tasks.values))
+        labels = sorted(
+            {r.speed_class for r in cfg.robots},
+            key=lambda c: -max(r.speed for r in cfg.robots if r.speed_class == c),
+        )
+        on_high = [
+            sum(
+                1
+                for i, r in enumerate(cfg.robots)
+                if r.speed_class == label and not broken[i] and sim.tasks.circuit[i] == high
+            )
+            for label in labels
+        ]
+        state = ":".join(str(k) for k in on_high)
+        lines = [
+            f"t = {sim.time_s / 3600.0:6.2f} h   {'/'.join(labels)} on circuit {high}: {state}   "
+            f"robots per circuit: {counts.tolist()}",
+            f"delivered value: {env.delivered_value:.1f} (w / max w per delivery)   "
+            f"broken: {int(broken.sum())}",
+        ]
+        for k, text in enumerate(lines):
+            label = self.font.render(text, True, (20, 20, 20))
+            surf.blit(label, (MARGIN_PX, self.size[1] - PANEL_PX + 8 + 22 * k))
         if self.mode == "human":
             if self.window is None:
                 pygame.display.init()
