@@ -5,6 +5,7 @@
     tavc record --allocator random --minutes 5 --out arena.gif
     tavc reproduce                                          # benchmarks/table1.py (the paper)
     tavc bench allocators --quick                           # any script in benchmarks/
+    tavc plot timeline trial.json --out timeline.png        # figures from saved results
 
 `tavc <command> --help` explains each command. Benchmark scripts live in the source checkout
 (`benchmarks/`), so `reproduce` and `bench` need the package installed from it (`pip install -e .`).
@@ -194,6 +195,35 @@ def cmd_record(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_plot(args: argparse.Namespace) -> int:
+    from agents import plots
+
+    if args.what == "interference":
+        source = args.source or BENCHMARKS / "results" / "interference.csv"
+        plots.interference_curve(_existing(source), args.out)
+    else:
+        trials = {}
+        for source in args.source_list:
+            result = TrialResult.load(_existing(source))
+            trials[result.label or Path(source).stem] = result
+        if args.what == "timeline":
+            plots.allocation_timeline(trials, args.out, args.from_h, args.to_h)
+        else:
+            if len(trials) != 1:
+                raise ValueError(f"q takes one trial file, given {len(trials)}; allowed: one")
+            plots.q_trajectories(next(iter(trials.values())), args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _existing(path: str | Path) -> Path:
+    if not Path(path).exists():
+        raise ValueError(
+            f"{path} does not exist; allowed: a results file written by tavc or a benchmark"
+        )
+    return Path(path)
+
+
 def _run_script(name: str, argv: Sequence[str]) -> int:
     path = BENCHMARKS / f"{name}.py"
     if not path.exists():
@@ -258,6 +288,26 @@ def parser() -> argparse.ArgumentParser:
     )
     record.set_defaults(run=cmd_record)
 
+    plot = sub.add_parser(
+        "plot",
+        help="plot saved results (no rerun): timeline, q, interference",
+        description="Draw a figure from saved results. timeline: which circuit each robot served "
+        "over time, one panel per trial file (from `tavc trial --out` or a benchmark's saved "
+        "trials); q: the learners' Q(high) - Q(other) over time, fast against slow; interference: "
+        "the interference curve t(n) from benchmarks/results/interference.csv.",
+    )
+    plot.add_argument("what", choices=["timeline", "q", "interference"])
+    plot.add_argument(
+        "source_list",
+        nargs="*",
+        metavar="FILE",
+        help="trial JSON file(s) (timeline, q) or interference.csv (default: the committed one)",
+    )
+    plot.add_argument("--from-h", type=float, default=None, help="timeline: start (hours)")
+    plot.add_argument("--to-h", type=float, default=None, help="timeline: end (hours)")
+    plot.add_argument("--out", type=Path, default=Path("plot.png"), help="the PNG to write")
+    plot.set_defaults(run=cmd_plot)
+
     reproduce = sub.add_parser(
         "reproduce",
         help="reproduce the paper's Table 1 (benchmarks/table1.py)",
@@ -292,6 +342,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         value = getattr(args, name, None)
         if value is not None and not value > 0:
             top.error(f"--{name.replace('_', '-')} = {value}; allowed: a number > 0")
+    if getattr(args, "what", None) is not None:
+        args.source = args.source_list[0] if args.source_list else None
+        if args.what != "interference" and not args.source_list:
+            top.error(
+                f"plot {args.what} needs trial file(s); allowed: one or more trial JSON files"
+            )
     if getattr(args, "convergence_h", 0.0) < 0:
         top.error(f"--convergence-h = {args.convergence_h}; allowed: a number >= 0")
     try:

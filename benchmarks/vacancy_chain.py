@@ -53,6 +53,7 @@ from _common import (
 from tavc_model import load_model
 
 from agents.model import CompletionModel, SpeedClasses, allocation_of
+from agents.plots import allocation_timeline
 from agents.runner import Event, TrialResult
 from agents.sweep import TrialSpec
 from tavc_env import make_config, metrics
@@ -257,12 +258,10 @@ def main(argv: Sequence[str] | None = None) -> None:
         args.out, "vacancy_chain", summary, body, meta, "Vacancy chains", {"rows": summary}
     )
     if have_matplotlib():
-        plot_timeline(
-            {n: runs[f"{n}_events_r{broken[(n, 0)]}_s0"] for n in ALLOCATORS},
-            {n: broken[(n, 0)] for n in ALLOCATORS},
-            classes,
-            times,
+        allocation_timeline(
+            {label: runs[f"{n}_events_r{broken[(n, 0)]}_s0"] for n, label in ALLOCATORS.items()},
             args.out / "timeline.png",
+            from_h=times["break"] / 3600.0 - 1.0,
         )
     print(body)
 
@@ -366,59 +365,6 @@ def _minutes(row: Mapping[str, Any]) -> str:
     if row["never_recovered"]:
         text += f" ({row['never_recovered']}/{row['trials']} never)"
     return text
-
-
-def plot_timeline(
-    runs: Mapping[str, TrialResult],
-    broken: Mapping[str, int],
-    classes: SpeedClasses,
-    times: Mapping[str, float],
-    path: Path,
-) -> None:
-    import matplotlib.pyplot as plt
-
-    t0, t1 = times["break"] - 3600.0, times["end"]
-    colours = ["tab:red", "tab:blue", "tab:green"]
-    fig, axes = plt.subplots(len(runs), 1, figsize=(11, 1.4 + 1.1 * len(runs)), sharex=True)
-    for ax, (name, r) in zip(np.atleast_1d(axes), runs.items()):
-        durations, states = metrics.allocation_segments(r.initial_circuits, r.changes, t0, t1)
-        starts = (t0 + np.concatenate([[0.0], np.cumsum(durations)[:-1]])) / 3600.0
-        for robot in range(states.shape[1]):
-            for circuit in range(len(r.values)):
-                bars = [
-                    (s, d / 3600.0)
-                    for s, d, c in zip(starts, durations, states[:, robot])
-                    if c == circuit
-                ]
-                ax.broken_barh(bars, (robot - 0.4, 0.8), color=colours[circuit % 3], lw=0)
-        applied = {kind: t for t, kind, _ in r.events}
-        down, up = applied.get("break_down"), applied.get("repair")
-        if down is not None and up is not None:
-            b = broken[name]
-            ax.broken_barh([(down / 3600.0, (up - down) / 3600.0)], (b - 0.4, 0.8), color="0.2")
-        for kind in ("break_down", "repair", "set_values"):
-            if kind in applied:
-                ax.axvline(applied[kind] / 3600.0, color="k", lw=0.8, ls="--")
-        ax.set_yticks(
-            range(states.shape[1]),
-            [f"{i} {classes.labels[k]}" for i, k in enumerate(classes.of_robot)],
-            fontsize=7,
-        )
-        ax.set_ylabel(ALLOCATORS[name], rotation=0, ha="right", va="center", fontsize=8)
-    last = np.atleast_1d(axes)[-1]
-    last.set_xlabel("simulated hours (dashed: breakdown, repair, values swap)")
-    handles = [plt.Rectangle((0, 0), 1, 1, color=colours[c]) for c in range(2)]
-    handles.append(plt.Rectangle((0, 0), 1, 1, color="0.2"))
-    fig.legend(
-        handles,
-        ["circuit 0 (high value until the swap)", "circuit 1", "broken"],
-        loc="upper center",
-        ncol=3,
-        fontsize=8,
-    )
-    fig.tight_layout(rect=(0, 0, 1, 0.95))
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 if __name__ == "__main__":

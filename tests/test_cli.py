@@ -120,3 +120,27 @@ def test_reproduce_and_bench_run_the_scripts(tmp_path: Path) -> None:
     assert code == 0 and (out_dir / "table1.md").exists() and "wrote" in out
     summary = json.loads((out_dir / "table1.json").read_text())
     assert summary["metadata"]["settings"]["trials"] == 2
+
+
+def test_plots_from_saved_results(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="plots need the plot extra")
+    softmax, rand = tmp_path / "softmax.json", tmp_path / "random.json"
+    assert run(["trial", "--allocator", "softmax_tavc", *TINY, "--out", str(softmax)])[0] == 0
+    assert run(["trial", "--allocator", "random", *TINY, "--out", str(rand)])[0] == 0
+    for argv in (
+        ["plot", "timeline", str(softmax), str(rand), "--from-h", "0.01"],
+        ["plot", "q", str(softmax)],
+        ["plot", "interference"],  # the committed benchmarks/results/interference.csv
+    ):
+        out = tmp_path / f"{argv[1]}.png"
+        code, printed, err = run([*argv, "--out", str(out)])
+        assert code == 0, err
+        assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "wrote" in printed
+    code, _, err = run(["plot", "q", str(rand), "--out", str(tmp_path / "x.png")])
+    assert code == 2 and "has no Q snapshots" in err
+    code, _, err = run(["plot", "timeline", str(tmp_path / "missing.json")])
+    assert code == 2 and "missing.json does not exist" in err
+    code, _, err = run(
+        ["plot", "timeline", str(rand), "--from-h", "5", "--out", str(tmp_path / "y.png")]
+    )
+    assert code == 2 and "is empty" in err
