@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 import tavc_env
+from agents.driver import PolicyDriver
 from agents.policy import Policy, Team
 from tavc_env._validation import is_integer, is_number, require
 
@@ -222,7 +223,8 @@ def run_trial(
     obs, infos = env.reset(seed=int(env_seq.generate_state(1)[0]))
     result.initial_circuits = [infos[a]["circuit"] for a in agents]
     current = list(result.initial_circuits)
-    pending: dict[str, tuple[np.ndarray, int]] = {}
+    driver = PolicyDriver({agent: table[agent] for agent in agents})
+    index = {agent: i for i, agent in enumerate(agents)}
     rewards: dict[str, float] = {}
     next_snapshot = 0.0
     schedule = sorted(events, key=lambda e: e.at_s)
@@ -235,20 +237,9 @@ def run_trial(
         if now >= next_snapshot:
             _snapshot(result, table, now)
             next_snapshot += snapshot_every_s
-        actions: dict[str, int] = {}
-        for i, agent in enumerate(agents):
-            info = infos[agent]
-            if not info["action_required"]:
-                continue
-            # A repaired robot decides without having completed its abandoned task: no update.
-            prev = pending.pop(agent, None)
-            if prev is not None and info["task_time_s"] is not None:
-                table[agent].update(
-                    prev[0], prev[1], rewards[agent], obs[agent]["observation"], info
-                )
-            action = int(table[agent].act(obs[agent]["observation"], obs[agent]["action_mask"]))
-            actions[agent] = action
-            pending[agent] = (obs[agent]["observation"], action)
+        actions = driver.actions(obs, rewards, infos)
+        for agent, action in actions.items():
+            i = index[agent]
             if action != current[i]:
                 current[i] = action
                 result.changes.append((now, i, action))
