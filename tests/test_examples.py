@@ -59,3 +59,14 @@ def test_own_agent_follows_the_protocol_and_learns_from_rewards() -> None:
     assert robot.act(obs, busy_on_1) == 1  # and never what the mask forbids
     values = example.compare(hours=1.5, seed=0)
     assert set(values) == {"ucb1", "softmax_tavc"} and all(v > 0.05 for v in values.values())
+
+
+@pytest.mark.marl
+def test_tianshou_dqn_learns_to_prefer_the_high_value_circuit() -> None:
+    """Opt-in: runs only where Tianshou and PyTorch are installed (see the example's docstring);
+    about 2 minutes. Its committed output: docs/examples/tianshou_dqn_output.txt."""
+    pytest.importorskip("tianshou", reason="Tianshou is not installed (an opt-in example)")
+    example = load("tianshou_dqn")
+    shares = example.train(seed=0)
+    print(shares)
+    assert shares["high_value_share_after"] >= 0.9
