@@ -201,6 +201,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if args.what == "interference":
         source = args.source or BENCHMARKS / "results" / "interference.csv"
         plots.interference_curve(_existing(source), args.out)
+    elif args.what == "table1":
+        return _run_script("table1", table1_redraw_args(_existing(args.source)))
     else:
         trials = {}
         for source in args.source_list:
@@ -214,6 +216,26 @@ def cmd_plot(args: argparse.Namespace) -> int:
             plots.q_trajectories(next(iter(trials.values())), args.out)
     print(f"wrote {args.out}")
     return 0
+
+
+def table1_redraw_args(folder: Path) -> list[str]:
+    """The `benchmarks/table1.py` arguments that made the results in `folder`, read back from its
+    `table1.json` and saved trials, so that rerunning loads every trial and only redraws."""
+    settings = json.loads(_existing(folder / "table1.json").read_text())["metadata"]["settings"]
+    found = {p.stem.rsplit("_seed", 1)[0] for p in (folder / "trials").glob("*.json")}
+    order = ["softmax", "epsilon", "random"]  # table1.py's own order of its columns
+    conditions = sorted(found, key=lambda c: (order.index(c) if c in order else len(order), c))
+    if not conditions:
+        raise ValueError(
+            f"{folder}/trials holds no saved trials; allowed: a table1.py output folder"
+        )
+    argv = ["--out", str(folder), "--conditions", ",".join(conditions)]
+    for key in ("preset", "trials", "convergence_h", "measured_h", "init", "temperature"):
+        argv += [f"--{key.replace('_', '-')}", str(settings[key])]
+    argv += ["--epsilon", str(settings["epsilon"]), "--seed", str(settings["seed"])]
+    for key, value in settings.get("overrides", {}).items():
+        argv += ["--set", f"{key}={json.dumps(value)}"]
+    return argv
 
 
 def _existing(path: str | Path) -> Path:
@@ -294,14 +316,16 @@ def parser() -> argparse.ArgumentParser:
         description="Draw a figure from saved results. timeline: which circuit each robot served "
         "over time, one panel per trial file (from `tavc trial --out` or a benchmark's saved "
         "trials); q: the learners' Q(high) - Q(other) over time, fast against slow; interference: "
-        "the interference curve t(n) from benchmarks/results/interference.csv.",
+        "the interference curve t(n) from benchmarks/results/interference.csv; table1: Table 1's "
+        "reports and figures redrawn from a table1.py output folder's saved trials.",
     )
-    plot.add_argument("what", choices=["timeline", "q", "interference"])
+    plot.add_argument("what", choices=["timeline", "q", "interference", "table1"])
     plot.add_argument(
         "source_list",
         nargs="*",
         metavar="FILE",
-        help="trial JSON file(s) (timeline, q) or interference.csv (default: the committed one)",
+        help="trial JSON file(s) (timeline, q), interference.csv (default: the committed one), "
+        "or a table1.py output folder (table1)",
     )
     plot.add_argument("--from-h", type=float, default=None, help="timeline: start (hours)")
     plot.add_argument("--to-h", type=float, default=None, help="timeline: end (hours)")
@@ -346,7 +370,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.source = args.source_list[0] if args.source_list else None
         if args.what != "interference" and not args.source_list:
             top.error(
-                f"plot {args.what} needs trial file(s); allowed: one or more trial JSON files"
+                f"plot {args.what} needs its input; allowed: trial JSON file(s) for timeline and "
+                "q, a table1.py output folder for table1"
             )
     if getattr(args, "convergence_h", 0.0) < 0:
         top.error(f"--convergence-h = {args.convergence_h}; allowed: a number >= 0")

@@ -144,3 +144,20 @@ def test_plots_from_saved_results(tmp_path: Path) -> None:
         ["plot", "timeline", str(rand), "--from-h", "5", "--out", str(tmp_path / "y.png")]
     )
     assert code == 2 and "is empty" in err
+
+
+def test_table1_figures_are_redrawn_from_saved_trials(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="plots need the plot extra")
+    out_dir = tmp_path / "t1"
+    argv = ["reproduce", "--", "--quick", "--workers", "1", "--out", str(out_dir)]
+    argv += ["--conditions", "softmax,random", "--set", "source_service_s=12"]
+    assert run(argv)[0] == 0
+    figure = out_dir / "figure2.png"
+    figure.unlink()
+    code, out, err = run(["plot", "table1", str(out_dir)])
+    assert code == 0, err
+    assert figure.exists() and "wrote" in out
+    saved = json.loads((out_dir / "table1.json").read_text())["metadata"]
+    assert saved["trials_run"] == 0 and saved["trials_resumed"] == 4  # nothing rerun
+    code, _, err = run(["plot", "table1", str(tmp_path)])
+    assert code == 2 and "table1.json does not exist" in err
