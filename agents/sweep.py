@@ -13,6 +13,7 @@ driver writes each result the moment it arrives, so the two backends resume each
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
@@ -72,11 +73,37 @@ def result_path(out_dir: Path, key: str) -> Path:
 
 
 def spec_record(spec: TrialSpec) -> dict[str, Any]:
-    """The spec as plain JSON data (what a saved result is checked against on resume)."""
+    """The spec as plain JSON data (what a saved result is checked against on resume), with a
+    digest of the arena it resolves to: a preset whose definition changed (a new default physics
+    step, say) no longer matches the trials saved under the old one."""
     data: dict[str, Any] = json.loads(json.dumps(asdict(spec), default=repr))
     if not data["events"]:
         del data["events"]  # trials saved before events existed had none; they still resume
+    data["arena"] = arena_digest(spec.env_kwargs)
     return data
+
+
+def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
+    """A short digest of the arena configuration that `env_kwargs` resolve to."""
+    from tavc_env import make_config
+
+    arena = {k: v for k, v in env_kwargs.items() if k not in ENV_ARGUMENTS}
+    preset = arena.pop("preset", "dahl2004")
+    config = make_config(preset, **arena)
+    return hashlib.sha256(repr(config).encode()).hexdigest()[:16]
+
+
+# keyword arguments of the env that are not arena fields
+ENV_ARGUMENTS = frozenset(
+    {
+        "render_mode",
+        "max_cycles",
+        "max_sim_time_s",
+        "decision_interval_s",
+        "reward_time_unit",
+        "step_cap_s",
+    }
+)
 
 
 J = TypeVar("J")
@@ -89,7 +116,7 @@ class JobKind(Generic[J, R]):
 
     `run` must be a module-level function (it is sent to worker processes or Ray tasks);
     `record(job)` is the job as plain JSON data, stored beside the result: a saved result is only
-    resumed for a job with the same record. `save(result, record, path)` writes atomically and
+    resumed for a job whose record it matches (`same(stored, wanted)`, equality by default). `save(result, record, path)` writes atomically and
     `load(path)` returns the result and its stored record.
     """
 
@@ -99,6 +126,9 @@ class JobKind(Generic[J, R]):
     save: Callable[[R, dict[str, Any], Path], None]
     load: Callable[[Path], tuple[R, dict[str, Any] | None]]
     unit: str = "job"
+    same: Callable[[dict[str, Any] | None, dict[str, Any]], bool] = field(
+        default=lambda stored, wanted: stored == wanted
+    )
 
 
 def run_jobs(
@@ -152,7 +182,7 @@ def run_jobs(
             todo.append(job)
             continue
         stored, record = kind.load(path)
-        if record != kind.record(job):
+        if not kind.same(record, kind.record(job)):
             raise ValueError(
                 f"{path} holds {kind.unit} {key!r} run with different settings "
                 f"({record or 'unknown'}); allowed: the same settings to resume, or another "
@@ -193,6 +223,14 @@ def _load_trial(path: Path) -> tuple[TrialResult, dict[str, Any] | None]:
     return result, result.spec
 
 
+def _same_trial(stored: dict[str, Any] | None, wanted: dict[str, Any]) -> bool:
+    if stored is not None and "arena" not in stored:
+        # Saved before records carried the arena's digest (November 2026), when every preset
+        # still had its original definition: taken as made with the arena it names today.
+        return stored == {k: v for k, v in wanted.items() if k != "arena"}
+    return stored == wanted
+
+
 TRIALS: JobKind[TrialSpec, TrialResult] = JobKind(
     run=run_spec,
     key=lambda spec: spec.key,
@@ -200,6 +238,7 @@ TRIALS: JobKind[TrialSpec, TrialResult] = JobKind(
     save=_save_trial,
     load=_load_trial,
     unit="trial",
+    same=_same_trial,
 )
 
 

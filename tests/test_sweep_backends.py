@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -160,3 +161,27 @@ def test_json_jobs_save_resume_and_refuse_other_settings(tmp_path: Path) -> None
         run_jobs([Square(0, scale=2.0)], SQUARES, tmp_path, workers=1)
     with pytest.raises(ValueError, match=r"duplicate square keys \['sq1'\]"):
         run_jobs([Square(1), Square(1, 2.0)], SQUARES, tmp_path / "other", workers=1)
+
+
+def test_a_changed_preset_is_not_resumed_but_old_records_still_are(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import tavc_env.config as config
+
+    spec = specs(1)[0]
+    first = run_sweep([spec], tmp_path, workers=1)
+    stored = json.loads(result_path(tmp_path, spec.key).read_text())
+    assert len(stored["spec"]["arena"]) == 16  # the digest of the resolved arena
+    # records saved before digests existed are taken as made with today's preset
+    del stored["spec"]["arena"]
+    result_path(tmp_path, spec.key).write_text(json.dumps(stored))
+    done: list[bool] = []
+    again = run_sweep([spec], tmp_path, workers=1, on_done=lambda s, r, was: done.append(was))
+    assert done == [True]  # resumed, not rerun
+    assert again[spec.key].delivery_time_s == first[spec.key].delivery_time_s
+    # a preset whose definition changed no longer matches a digest-carrying record
+    run_sweep([spec], tmp_path / "new", workers=1)
+    original = config.PRESETS["dahl2004"]
+    monkeypatch.setitem(config.PRESETS, "dahl2004", lambda: original().replace(dt=0.2))  # type: ignore[index]
+    with pytest.raises(ValueError, match="run with different settings"):
+        run_sweep([spec], tmp_path / "new", workers=1)
