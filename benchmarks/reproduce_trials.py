@@ -18,29 +18,33 @@ import glob
 import json
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.runner import TrialResult
+from agents.runner import Event, TrialResult
 from agents.sweep import TrialSpec, run_spec
 
 IGNORED = ("wall_s", "spec")  # wall-clock time; the spec itself is what is re-run
 
 
-def comparable(result: TrialResult) -> Any:
-    data = result.to_dict()
-    for key in IGNORED:
-        data.pop(key, None)
+def comparable(result: TrialResult, fields: set[str]) -> Any:
+    data = {k: v for k, v in result.to_dict().items() if k in fields and k not in IGNORED}
     return json.loads(json.dumps(data))
 
 
 def check(path: str) -> tuple[str, bool, int]:
-    stored = TrialResult.load(path)
+    stored_data = json.loads(Path(path).read_text())
+    stored = TrialResult.from_dict(stored_data)
     if not stored.spec:
         raise ValueError(f"{path} has no stored spec; allowed: trials saved by agents.sweep")
-    fresh = run_spec(TrialSpec(**stored.spec))
-    return path, comparable(stored) == comparable(fresh), fresh.escapes
+    spec = {k: v for k, v in stored.spec.items() if k != "arena"}  # a digest, not an argument
+    spec["events"] = tuple(Event(**e) for e in spec.get("events", ()))
+    fresh = run_spec(TrialSpec(**spec))
+    # fields added to trial records after this one was saved are not compared
+    fields = set(stored_data)
+    return path, comparable(stored, fields) == comparable(fresh, fields), fresh.escapes
 
 
 def main(argv: Sequence[str] | None = None) -> int:
