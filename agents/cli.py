@@ -58,7 +58,13 @@ def _allocator(args: argparse.Namespace) -> Any:
                 f"not exist; allowed: --model PATH, or make it with: tavc bench tavc_model "
                 f"--preset {args.preset}"
             )
-        params["model"] = json.loads(Path(path).read_text())
+        try:
+            params["model"] = json.loads(Path(path).read_text())
+        except (OSError, json.JSONDecodeError) as error:
+            raise ValueError(
+                f"--model {path} could not be read ({error}); allowed: a model.json written by "
+                "benchmarks/tavc_model.py"
+            ) from None
     return make_allocator(args.allocator, **params)
 
 
