@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.model import CompletionModel
-from agents.teams import TeamAllocator, _model
+from agents.model import CompletionModel, as_model
+from agents.teams import TeamAllocator
 from tavc_env._validation import is_integer, is_number, require
 
 
@@ -122,7 +122,7 @@ class AuctionAllocator(TeamAllocator):
             "a relative penalty in [0, 1)",
         )
         self.places = None if places is None else [int(k) for k in places]
-        self.model = None if model is None else _model(model)
+        self.model = None if model is None else as_model(model)
         self.rate = float(rate)
         self.switch_penalty = float(switch_penalty)
         self.times = np.zeros((0, 0))

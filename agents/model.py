@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from tavc_env import ArenaConfig, Robot, make_config
+from tavc_env import ArenaConfig, Robot, make_config, metrics
 from tavc_env._validation import is_number, require
 
 Group = tuple[int, ...]  # robots per speed class on one circuit
@@ -145,6 +145,23 @@ class CompletionModel:
         """The paper's measure: delivered value (w_i / max w per delivery) per robot per 10 s."""
         robots = sum(sum(g) for g in allocation)
         return self.value_rate(allocation) / max(self.values) / max(robots, 1) * 10.0
+
+    def mean_performance(
+        self,
+        initial: Sequence[int],
+        changes: Sequence[tuple[float, int, int]],
+        classes: SpeedClasses,
+        t0: float,
+        t1: float,
+    ) -> float:
+        """`performance` of the allocation a team held over `[t0, t1)` (an allocation timeline:
+        initial circuits and time-ordered changes), time-weighted. Every robot counts, so use it
+        on windows without breakdowns."""
+        durations, states = metrics.allocation_segments(initial, changes, t0, t1)
+        values = np.array(
+            [self.performance(allocation_of(row, classes, self.n_circuits)) for row in states]
+        )
+        return float((durations * values).sum() / durations.sum())
 
     # -- search ---------------------------------------------------------------------------------
     def allocations(self, team: Sequence[int] | None = None) -> Iterator[Allocation]:
@@ -282,6 +299,14 @@ class CompletionModel:
             self._group(g)
 
 
+def as_model(model: CompletionModel | Mapping[str, Any]) -> CompletionModel:
+    """`model` itself, or the model its dict (`CompletionModel.to_dict`, a model.json) describes."""
+    if isinstance(model, CompletionModel):
+        return model
+    require(isinstance(model, Mapping), "model", type(model).__name__, "a CompletionModel or dict")
+    return CompletionModel.from_dict(model)
+
+
 def _splits(n: int, parts: int) -> Iterator[tuple[int, ...]]:
     """Every way to write n as an ordered sum of `parts` counts >= 0."""
     if parts == 1:
@@ -292,17 +317,11 @@ def _splits(n: int, parts: int) -> Iterator[tuple[int, ...]]:
             yield (first, *rest)
 
 
-def allocation_of(
-    circuits: Sequence[int],
-    classes: SpeedClasses,
-    n_circuits: int,
-    working: Sequence[bool] | None = None,
-) -> Allocation:
-    """The groups per circuit when robot r serves `circuits[r]` (robots not `working` left out)."""
+def allocation_of(circuits: Sequence[int], classes: SpeedClasses, n_circuits: int) -> Allocation:
+    """The groups per circuit when robot r serves `circuits[r]`."""
     groups = [[0] * len(classes.labels) for _ in range(n_circuits)]
-    for r, (circuit, k) in enumerate(zip(circuits, classes.of_robot)):
-        if working is None or working[r]:
-            groups[int(circuit)][k] += 1
+    for circuit, k in zip(circuits, classes.of_robot):
+        groups[int(circuit)][k] += 1
     return tuple(tuple(g) for g in groups)
 
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.model import CompletionModel, SpeedClasses, robot_circuits
+from agents.model import CompletionModel, SpeedClasses, as_model, robot_circuits
 from agents.policy import Policy, allowed_actions, state_of
 from tavc_env._validation import is_integer, require
 from tavc_env.config import ArenaConfig
@@ -132,13 +132,6 @@ class Member:
         self.team.learn(self.robot, state_of(observation), action, reward, info)
 
 
-def _model(model: CompletionModel | Mapping[str, Any]) -> CompletionModel:
-    if isinstance(model, CompletionModel):
-        return model
-    require(isinstance(model, Mapping), "model", type(model).__name__, "a CompletionModel or dict")
-    return CompletionModel.from_dict(model)
-
-
 class StaticAllocator(TeamAllocator):
     """Static allocation: every robot always serves one pre-assigned circuit.
 
@@ -168,7 +161,7 @@ class StaticAllocator(TeamAllocator):
                 circuits,
                 "one circuit index >= 0 per robot",
             )
-        self.model = None if model is None else _model(model)
+        self.model = None if model is None else as_model(model)
         self.plan = None if circuits is None else [int(c) for c in circuits]
 
     def setup(self) -> None:
@@ -206,7 +199,7 @@ class GreedyAllocator(TeamAllocator):
 
     def __init__(self, model: CompletionModel | Mapping[str, Any]) -> None:
         super().__init__()
-        self.model = _model(model)
+        self.model = as_model(model)
 
     def setup(self) -> None:
         self.model.check_team(self.classes)

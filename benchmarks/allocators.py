@@ -46,7 +46,7 @@ from _common import (
 )
 from tavc_model import load_model
 
-from agents.model import CompletionModel, SpeedClasses, allocation_of
+from agents.model import CompletionModel, SpeedClasses
 from agents.runner import TrialResult
 from agents.sweep import TrialSpec
 from tavc_env import make_config, metrics
@@ -76,54 +76,39 @@ def allocators(model: CompletionModel) -> list[Allocator]:
     ]
 
 
-def allocation_value(
-    result: TrialResult, model: CompletionModel, t0: float, t1: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Segments of `[t0, t1)`: durations and the model's predicted performance of the allocation
-    in each (for trials without breakdowns: every robot counts)."""
-    classes = _classes(result)
-    durations, states = metrics.allocation_segments(result.initial_circuits, result.changes, t0, t1)
-    values = np.array(
-        [model.performance(allocation_of(row, classes, model.n_circuits)) for row in states]
-    )
-    return durations, values
-
-
-def _classes(result: TrialResult) -> SpeedClasses:
-    return SpeedClasses.of(make_config(result.env_kwargs.get("preset", "dahl2004")))
-
-
-def settle_time_h(result: TrialResult, model: CompletionModel) -> float:
-    """Hours until the allocation first comes within SETTLE_BAND of its long-run quality: the
-    start of the first SETTLE_WINDOW_H-hour window whose mean model value is within SETTLE_BAND of
-    the measured period's mean (inf if none does). A sliding window and a first entry, rather than
-    "stays inside", so that the hour-to-hour noise of stochastic allocators does not count as
+def settle_time_h(
+    result: TrialResult, model: CompletionModel, classes: SpeedClasses, target: float
+) -> float:
+    """Hours until the allocation first comes within SETTLE_BAND of its long-run quality
+    `target`: the start of the first SETTLE_WINDOW_H-hour window whose mean model value is within
+    SETTLE_BAND of it (inf if none is). A sliding window and a first entry, rather than "stays
+    inside", so that the hour-to-hour noise of stochastic allocators does not count as
     drifting."""
-    t0, t1 = result.measured_window
-    d, v = allocation_value(result, model, t0, t1)
-    target = float((d * v).sum() / d.sum())
-    hours = int(t1 // 3600)
+    hours = int(result.measured_window[1] // 3600)
     for h in range(hours - SETTLE_WINDOW_H + 1):
-        dh, vh = allocation_value(result, model, h * 3600.0, (h + SETTLE_WINDOW_H) * 3600.0)
-        if abs((dh * vh).sum() / dh.sum() - target) <= SETTLE_BAND * target:
+        window = (h * 3600.0, (h + SETTLE_WINDOW_H) * 3600.0)
+        value = model.mean_performance(result.initial_circuits, result.changes, classes, *window)
+        if abs(value - target) <= SETTLE_BAND * target:
             return float(h)
     return math.inf
 
 
-def measure(result: TrialResult, model: CompletionModel) -> dict[str, float]:
+def measure(
+    result: TrialResult, model: CompletionModel, classes: SpeedClasses, optimum: float
+) -> dict[str, float]:
+    """One trial's measures; `optimum` is the model optimum's performance."""
     t0, t1 = result.measured_window
-    optimum = model.performance(model.optimum())
     perf = metrics.value_rate(
         result.delivery_time_s, result.delivery_circuit, result.values, len(result.agents), t0, t1
     )
-    d, v = allocation_value(result, model, t0, t1)
+    held = model.mean_performance(result.initial_circuits, result.changes, classes, t0, t1)
     switches = sum(1 for t, _, _ in result.changes if t0 <= t < t1)
     return {
         "performance": perf,
         "fraction_of_optimum": perf / optimum,
-        "allocation_value_fraction": float((d * v).sum() / d.sum()) / optimum,
+        "allocation_value_fraction": held / optimum,
         "switches_per_robot_h": switches / len(result.agents) / ((t1 - t0) / 3600.0),
-        "settle_h": settle_time_h(result, model),
+        "settle_h": settle_time_h(result, model, classes, held),
         "escapes": result.escapes,
     }
 
@@ -153,8 +138,13 @@ def summarise(
     """Per-allocator summary rows and per-trial rows."""
     summary, per_trial = [], []
     measures: dict[str, list[dict[str, float]]] = {}
+    classes = SpeedClasses.of(make_config(preset))
+    optimum = model.performance(model.optimum())
     for a in allocators(model):
-        rows = [measure(results[f"{preset}__{a.name}_s{s}"], model) for s in range(trials)]
+        rows = [
+            measure(results[f"{preset}__{a.name}_s{s}"], model, classes, optimum)
+            for s in range(trials)
+        ]
         measures[a.name] = rows
         per_trial += [
             {"preset": preset, "allocator": a.name, "seed": s, **r} for s, r in enumerate(rows)

@@ -52,7 +52,7 @@ from _common import (
 )
 from tavc_model import load_model
 
-from agents.model import CompletionModel, SpeedClasses, allocation_of
+from agents.model import CompletionModel, SpeedClasses
 from agents.plots import allocation_timeline
 from agents.runner import Event, TrialResult
 from agents.sweep import TrialSpec
@@ -106,14 +106,16 @@ def delivered(result: TrialResult, t0: float, t1: float) -> float:
     return float(values[inside].sum() / max(result.values) / ((t1 - t0) / 3600.0))
 
 
-def working_on(result: TrialResult, circuit: int, t0: float, t1: float, broken: int | None):
-    """Segments of `[t0, t1)`: durations, starts and the working robots on `circuit`."""
+def working_on(
+    result: TrialResult, circuit: int, t0: float, t1: float, broken: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Segments of `[t0, t1)`: their starts and how many robots, `broken` left out, serve
+    `circuit` in each."""
     durations, states = metrics.allocation_segments(result.initial_circuits, result.changes, t0, t1)
     starts = t0 + np.concatenate([[0.0], np.cumsum(durations)[:-1]])
     on = states == circuit
-    if broken is not None:
-        on[:, broken] = False
-    return durations, starts, on.sum(axis=1)
+    on[:, broken] = False
+    return starts, on.sum(axis=1)
 
 
 def measure(
@@ -132,10 +134,9 @@ def measure(
         applied.get("repair", tr),
         applied.get("set_values", tv),
     )
-    full = int(
-        (circuits_at(result, tb) == 0).sum()
-    )  # on circuit 0 just before, the broken included
-    _d, starts, count = working_on(result, 0, tb, tr, broken)
+    # robots on circuit 0 just before the breakdown, the broken one included
+    full = int((circuits_at(result, tb) == 0).sum())
+    starts, count = working_on(result, 0, tb, tr, broken)
     refilled = np.flatnonzero(count >= full)
     recovery = float(starts[refilled[0]] - tb) if refilled.size else math.inf
     end_chain = tb + (recovery if math.isfinite(recovery) else tr - tb)
@@ -148,12 +149,11 @@ def measure(
     reduced_rate = 3600 * model.value_rate(reduced) / max(model.values)
     swapped = model.with_values(tuple(reversed(model.values)))
     new_best = swapped.performance(swapped.optimum())
-    after_swap = []
     edges = np.linspace(tv, te, SWAP_WINDOWS + 1)
-    for a, b in itertools.pairwise(edges):
-        dur, states = metrics.allocation_segments(result.initial_circuits, result.changes, a, b)
-        vals = [swapped.performance(allocation_of(s, classes, model.n_circuits)) for s in states]
-        after_swap.append(float(np.dot(dur, vals) / dur.sum()) / new_best)
+    after_swap = [
+        swapped.mean_performance(result.initial_circuits, result.changes, classes, a, b) / new_best
+        for a, b in itertools.pairwise(edges)
+    ]
     return {
         "broken_robot": broken,
         "broken_class": classes.labels[classes.of_robot[broken]],
