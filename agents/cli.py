@@ -32,15 +32,15 @@ BENCHMARKS = REPO / "benchmarks"
 NEEDS_MODEL = ("static", "greedy", "auction")
 
 
-def _key_values(items: Sequence[str], what: str) -> dict[str, Any]:
-    """`KEY=VALUE` items as a dict; values parsed as JSON when they are JSON, else kept as text."""
+def parse_key_values(items: Sequence[str], option: str, example: str) -> dict[str, Any]:
+    """`KEY=VALUE` items (as given to `option`) as a dict: values that parse as JSON (numbers,
+    true/false, lists) are used as such, anything else as a string; whoever receives them then
+    names any key or value it does not accept. A ValueError shows `example` for a malformed one."""
     out: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")
         if not sep or not key:
-            raise ValueError(
-                f"{what} {item!r} is invalid; allowed: KEY=VALUE, e.g. temperature=0.01"
-            )
+            raise ValueError(f"{option} {item!r} is invalid; allowed: KEY=VALUE, e.g. {example}")
         try:
             out[key] = json.loads(text)
         except json.JSONDecodeError:
@@ -49,7 +49,7 @@ def _key_values(items: Sequence[str], what: str) -> dict[str, Any]:
 
 
 def _allocator(args: argparse.Namespace) -> Any:
-    params = _key_values(args.param, "--param")
+    params = parse_key_values(args.param, "--param", "temperature=0.01")
     if args.allocator in NEEDS_MODEL and "model" not in params and "circuits" not in params:
         path = args.model or BENCHMARKS / "results" / "tavc_model" / args.preset / "model.json"
         if not Path(path).exists():
@@ -115,7 +115,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
             measured_s=args.hours * 3600.0,
             progress=progress,
             preset=args.preset,
-            **_key_values(args.set, "--set"),
+            **parse_key_values(args.set, "--set", "source_service_s=15"),
         )
     finally:
         bar.close()
@@ -180,7 +180,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         preset=args.preset,
         render_mode="rgb_array",
         decision_interval_s=args.frame_s,
-        **_key_values(args.set, "--set"),
+        **parse_key_values(args.set, "--set", "source_service_s=15"),
     )
     if kind == ".png":
         frames[-1].save(args.out)

@@ -308,21 +308,11 @@ def fmt_ci(mean: float, low: float, high: float, digits: int = 1) -> str:
 
 
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
-    """Arena overrides from `KEY=VALUE` strings (as given to `--set`): values that parse as JSON
-    (numbers, true/false, lists) are used as such, anything else as a string. The arena's own
-    validation then names any key or value it does not accept."""
-    overrides: dict[str, Any] = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise ValueError(
-                f"--set {item!r} is invalid; allowed: KEY=VALUE, e.g. source_service_s=15"
-            )
-        try:
-            overrides[key] = json.loads(text)
-        except json.JSONDecodeError:
-            overrides[key] = text
-    return overrides
+    """Arena overrides from `KEY=VALUE` strings (as given to `--set`), parsed as the `tavc`
+    command parses them; the arena's own validation then names any key or value it rejects."""
+    from agents.cli import parse_key_values
+
+    return parse_key_values(items, "--set", "source_service_s=15")
 
 
 def add_sweep_options(parser: argparse.ArgumentParser) -> None:
