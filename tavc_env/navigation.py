@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -370,14 +369,8 @@ _stuck_c = stuck
 after_step = _compile(_after_step)
 
 
-@dataclass(frozen=True)
-class Command:
-    velocity: np.ndarray  # (n, 2) m/s
-    heading: np.ndarray  # (n,) rad in [-pi, pi)
-
-
 class Navigator:
-    """The controller for all robots of one arena."""
+    """The controller's constants for one arena (the compiled functions above take them)."""
 
     def __init__(self, config: ArenaConfig) -> None:
         self.radius = config.robot_radius
@@ -385,37 +378,3 @@ class Navigator:
         self.turn_step = config.max_turn_rate * config.dt
         self.width = config.width
         self.height = config.height
-
-    def command(
-        self,
-        pos: np.ndarray,
-        heading: np.ndarray,
-        target: np.ndarray,
-        moving: np.ndarray,
-        top_speed: np.ndarray,
-        present: np.ndarray,
-    ) -> Command:
-        """Velocities and new headings for one tick.
-
-        `moving`: robots that drive toward their target this tick (others stand still but are still
-        obstacles); `present`: robots physically on the floor; `top_speed`: each robot's speed now.
-        """
-        n = pos.shape[0]
-        velocity = np.empty((n, 2))
-        new_heading = np.empty(n)
-        steer_all(
-            np.ascontiguousarray(pos, dtype=np.float64),
-            np.ascontiguousarray(heading, dtype=np.float64),
-            np.ascontiguousarray(target, dtype=np.float64),
-            np.ascontiguousarray(moving, dtype=np.bool_),
-            np.ascontiguousarray(top_speed, dtype=np.float64),
-            np.ascontiguousarray(present, dtype=np.bool_),
-            self.radius,
-            self.sensing,
-            self.turn_step,
-            self.width,
-            self.height,
-            velocity,
-            new_heading,
-        )
-        return Command(velocity=velocity, heading=new_heading)
