@@ -14,6 +14,7 @@ driver writes each result the moment it arrives, so the two backends resume each
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import os
 import re
@@ -84,26 +85,15 @@ def spec_record(spec: TrialSpec) -> dict[str, Any]:
 
 
 def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
-    """A short digest of the arena configuration that `env_kwargs` resolve to."""
+    """A short digest of the arena configuration that `env_kwargs` resolve to (the env's own
+    arguments, such as time limits, are not part of the arena)."""
     from tavc_env import make_config
+    from tavc_env.env import TavcArenaEnv
 
-    arena = {k: v for k, v in env_kwargs.items() if k not in ENV_ARGUMENTS}
-    preset = arena.pop("preset", "dahl2004")
-    config = make_config(preset, **arena)
+    env_only = set(inspect.signature(TavcArenaEnv.__init__).parameters) - {"preset", "config"}
+    arena = {k: v for k, v in env_kwargs.items() if k not in env_only}
+    config = make_config(arena.pop("preset", "dahl2004"), **arena)
     return hashlib.sha256(repr(config).encode()).hexdigest()[:16]
-
-
-# keyword arguments of the env that are not arena fields
-ENV_ARGUMENTS = frozenset(
-    {
-        "render_mode",
-        "max_cycles",
-        "max_sim_time_s",
-        "decision_interval_s",
-        "reward_time_unit",
-        "step_cap_s",
-    }
-)
 
 
 J = TypeVar("J")
