@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.registry import ALLOCATORS, TEAMS, make_allocator
-from agents.runner import TrialResult, run_trial
+from agents.experiments.registry import ALLOCATORS, TEAMS, make_allocator
+from agents.experiments.runner import TrialResult, run_trial
 from tavc_env import PRESETS, metrics
 
 REPO = Path(__file__).resolve().parent.parent
@@ -202,7 +202,7 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from agents import plots
+    from agents.analysis import plots
 
     if args.what == "interference":
         source = args.source or BENCHMARKS / "results" / "interference.csv"

@@ -1,5 +1,5 @@
 """Driving policies from an env's outputs: the bookkeeping between PettingZoo's step dicts and the
-`Policy` protocol, shared by the trial runner and `agents.single_robot.SingleRobotEnv`.
+`Policy` protocol, shared by the trial runner and `agents.envs.single_robot.SingleRobotEnv`.
 
 At every step, each agent whose info says `action_required` first learns from the task it chose
 last time (if that task completed: a repaired robot abandoned its task and learns nothing from

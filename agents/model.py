@@ -11,9 +11,10 @@ the team's value rate under an allocation (one group per circuit) is sum_i w_i c
 model-optimal allocation maximises it. `CompletionModel.optimum` finds it by exhaustive search over
 every split of the team (a few thousand allocations for three circuits and nine robots).
 
-`estimate_model` measures c from simulation: each composition serves each circuit alone, as fixed
-allocations. The model therefore assumes that circuits do not slow each other down and that moving
-between circuits is free; `benchmarks/tavc_model.py` checks its predictions against the full arena.
+`agents.experiments.estimation.estimate_model` measures c by simulation: each composition serves
+each circuit alone, as fixed allocations, and `model_from_runs` turns those runs into a model. The
+model therefore assumes that circuits do not slow each other down and that moving between circuits
+is free; the `tavc_model` study checks its predictions against the full arena.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from tavc_env import ArenaConfig, Robot, make_config, metrics
+from tavc_env import ArenaConfig, Robot, metrics
 from tavc_env._validation import is_number, require
 
 Group = tuple[int, ...]  # robots per speed class on one circuit
@@ -350,41 +351,6 @@ def robot_circuits(allocation: Allocation, classes: SpeedClasses) -> list[int]:
     return circuits
 
 
-# -- estimation from simulation -------------------------------------------------------------------
-def group_specs(
-    config: ArenaConfig,
-    seeds: Sequence[int],
-    warmup_s: float,
-    measure_s: float,
-    key_prefix: str = "",
-) -> list[Any]:
-    """The sweep that measures c: every non-empty group alone on every circuit, as fixed
-    allocations (`agents.sweep.TrialSpec`s with keys `<prefix>c<i>_g<counts>_s<seed>`)."""
-    from agents.sweep import TrialSpec
-
-    classes = SpeedClasses.of(config)
-    specs = []
-    for i in range(config.n_circuits):
-        for group in itertools.product(*(range(n + 1) for n in classes.team)):
-            if sum(group) == 0:
-                continue
-            robots = tuple(r for r, n in zip(classes.robots, group) for _ in range(n))
-            for seed in seeds:
-                specs.append(
-                    TrialSpec(
-                        key=f"{key_prefix}c{i}_g{'-'.join(map(str, group))}_s{seed}",
-                        allocator="fixed",
-                        allocator_kwargs={"circuit": i},
-                        seed=seed,
-                        env_kwargs={"config": config, "robots": robots},
-                        convergence_s=warmup_s,
-                        measured_s=measure_s,
-                        snapshot_every_s=warmup_s + measure_s,
-                    )
-                )
-    return specs
-
-
 def model_from_runs(
     config: ArenaConfig, runs: Sequence[tuple[int, Group, float]]
 ) -> CompletionModel:
@@ -413,50 +379,3 @@ def model_from_runs(
     return CompletionModel(
         classes.labels, classes.team, tuple(c.value for c in config.circuits), rates, se
     )
-
-
-def measured_rate(result: Any) -> float:
-    """Tasks per second completed in a trial's measured window (an `agents.runner.TrialResult`)."""
-    t0, t1 = result.measured_window
-    times = np.asarray(result.delivery_time_s, dtype=float)
-    return float(((times >= t0) & (times < t1)).sum() / (t1 - t0))
-
-
-def estimate_model(
-    config: ArenaConfig | str = "dahl2004",
-    *,
-    seeds: Sequence[int] = (0, 1, 2),
-    warmup_s: float = 600.0,
-    measure_s: float = 7200.0,
-    out_dir: str | Path | None = None,
-    workers: int | None = None,
-    progress_bar: bool = False,
-) -> CompletionModel:
-    """Measure c_{i,J} for every group and circuit of `config` (or a preset name) by simulation.
-
-    Each group serves each circuit alone (the other robots absent) for `warmup_s` then `measure_s`
-    simulated seconds, once per seed. With `out_dir`, runs are saved as they finish and a rerun
-    resumes; otherwise they run in a temporary folder.
-    """
-    import tempfile
-
-    from agents.sweep import run_sweep
-
-    cfg = make_config(config) if isinstance(config, str) else config
-    require(len(seeds) >= 1, "seeds", seeds, "at least one seed")
-    specs = group_specs(cfg, seeds, warmup_s, measure_s)
-    with tempfile.TemporaryDirectory() as tmp:
-        results = run_sweep(
-            specs, out_dir if out_dir is not None else tmp, workers, progress_bar=progress_bar
-        )
-    runs = [
-        (int(s.allocator_kwargs["circuit"]), group_of_key(s.key), measured_rate(results[s.key]))
-        for s in specs
-    ]
-    return model_from_runs(cfg, runs)
-
-
-def group_of_key(key: str) -> Group:
-    """The group encoded in a `group_specs` key (`...c<i>_g<n0>-<n1>..._s<seed>`)."""
-    part = key.rsplit("_g", 1)[1].split("_s", 1)[0]
-    return tuple(int(n) for n in part.split("-"))

@@ -42,6 +42,17 @@ class Policy(Protocol):
         now observes `next_observation` (`info` carries e.g. `task_time_s`)."""
 
 
+def generator(rng: np.random.Generator | None, owner: object) -> np.random.Generator:
+    """`rng`, the random stream `owner` was given by `reset`; a ValueError if it was never reset
+    (a policy used before `reset` must not silently run on some default seed)."""
+    if rng is None:
+        raise ValueError(
+            f"{type(owner).__name__} was used before reset(rng, n_actions); allowed: call reset "
+            "with the policy's random generator first"
+        )
+    return rng
+
+
 def allowed_actions(action_mask: np.ndarray) -> np.ndarray:
     """Indices the mask allows; a ValueError if it allows none."""
     allowed = np.flatnonzero(np.asarray(action_mask) > 0)

@@ -336,12 +336,12 @@ def run_trials(
     settings: Mapping[str, Any],
     backend: str = "local",
 ) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Run (or resume) a sweep of `agents.sweep.TrialSpec`s with a progress bar; return the
+    """Run (or resume) a sweep of `agents.experiments.sweep.TrialSpec`s with a progress bar; return the
     results by key and the run metadata, taken before the trials run (the commit they ran from),
     with the wall time and how many trials were run or resumed."""
     import time
 
-    from agents.sweep import run_sweep
+    from agents.experiments.sweep import run_sweep
 
     meta = run_metadata(settings=dict(settings))
     resumed: list[str] = []

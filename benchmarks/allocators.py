@@ -46,9 +46,9 @@ from _common import (
 )
 from tavc_model import load_model
 
+from agents.experiments.runner import TrialResult
+from agents.experiments.sweep import TrialSpec
 from agents.model import CompletionModel, SpeedClasses
-from agents.runner import TrialResult
-from agents.sweep import TrialSpec
 from tavc_env import make_config, metrics
 
 PRESETS = ("dahl2004", "three_circuits_three_classes")

@@ -44,7 +44,7 @@ from _common import (
 )
 from table1 import TrialMeasures, measure
 
-from agents.sweep import TrialSpec
+from agents.experiments.sweep import TrialSpec
 from tavc_env.config import ARENA_REGIMES
 
 REGIMES = ARENA_REGIMES  # also shipped as presets dahl2004, dahl2004_competence, ...

@@ -39,10 +39,10 @@ from _common import (
 )
 from interference import HOMOG, Job, run_job_rows
 
-from agents.baselines import RandomAllocator
-from agents.model import measured_rate
-from agents.runner import run_trial
-from agents.sweep import json_jobs, run_jobs
+from agents.allocators.baselines import RandomAllocator
+from agents.experiments.estimation import measured_rate
+from agents.experiments.runner import run_trial
+from agents.experiments.sweep import json_jobs, run_jobs
 from tavc_env import make_config
 
 QUANTITIES = [f"t({n})" for n in range(1, 7)] + ["t fast (random)", "t slow (random)"]

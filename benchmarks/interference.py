@@ -1,7 +1,7 @@
 """Interference in the arena: task time against crowding, the cost of a circuit switch, and the
 cross-interference between fast and slow robots.
 
-Every measurement drives the bare engine (`tavc_env.simulation.Simulation`) with fixed allocations:
+Every measurement drives the bare engine (`tavc_env.engine.simulation.Simulation`) with fixed allocations:
 each robot serves the circuit it is given, task after task (a designated "switcher" alternates).
 
 1. **t(n)** (preset `dahl2004_homogeneous`, six robots at 0.25 m/s): allocation k on circuit 0 and
@@ -71,9 +71,9 @@ from _common import (
 )
 
 import tavc_env
-from agents.sweep import json_jobs, run_jobs
-from tavc_env.simulation import Simulation
-from tavc_env.tasks import Mode
+from agents.experiments.sweep import json_jobs, run_jobs
+from tavc_env.engine.simulation import Simulation
+from tavc_env.engine.tasks import Mode
 
 HOMOG = "dahl2004_homogeneous"
 HETERO = "dahl2004"

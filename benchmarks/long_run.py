@@ -42,9 +42,9 @@ from _common import (
 )
 
 import tavc_env
-from agents.sweep import json_jobs, run_jobs
-from tavc_env.navigation import STUCK_PATIENCE_S
-from tavc_env.tasks import PHASE_NAMES, Mode, Phase
+from agents.experiments.sweep import json_jobs, run_jobs
+from tavc_env.engine.navigation import STUCK_PATIENCE_S
+from tavc_env.engine.tasks import PHASE_NAMES, Mode, Phase
 
 MODE_NAMES = {int(m): m.name.lower() for m in Mode}
 

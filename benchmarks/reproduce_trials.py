@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.runner import Event, TrialResult
-from agents.sweep import TrialSpec, run_spec
+from agents.experiments.runner import Event, TrialResult
+from agents.experiments.sweep import TrialSpec, run_spec
 
 IGNORED = ("wall_s", "spec")  # wall-clock time; the spec itself is what is re-run
 
@@ -38,7 +38,9 @@ def check(path: str) -> tuple[str, bool, int]:
     stored_data = json.loads(Path(path).read_text())
     stored = TrialResult.from_dict(stored_data)
     if not stored.spec:
-        raise ValueError(f"{path} has no stored spec; allowed: trials saved by agents.sweep")
+        raise ValueError(
+            f"{path} has no stored spec; allowed: trials saved by agents.experiments.sweep"
+        )
     spec = {k: v for k, v in stored.spec.items() if k != "arena"}  # a digest, not an argument
     spec["events"] = tuple(Event(**e) for e in spec.get("events", ()))
     fresh = run_spec(TrialSpec(**spec))

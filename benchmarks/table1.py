@@ -43,8 +43,8 @@ from _common import (
     write_results,
 )
 
-from agents.runner import TrialResult
-from agents.sweep import TrialSpec
+from agents.experiments.runner import TrialResult
+from agents.experiments.sweep import TrialSpec
 from tavc_env import PRESETS, metrics
 
 # The paper's Table 1 (mu_a, s_a: modified TAVC; mu_r, s_r: random; T: Equation 3).

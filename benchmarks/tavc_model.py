@@ -37,17 +37,15 @@ from _common import (
 )
 from scipy import stats
 
+from agents.experiments.estimation import group_of, group_specs, measured_rate
+from agents.experiments.sweep import TrialSpec
 from agents.model import (
     Allocation,
     CompletionModel,
     SpeedClasses,
-    group_of_key,
-    group_specs,
-    measured_rate,
     model_from_runs,
     robot_circuits,
 )
-from agents.sweep import TrialSpec
 from tavc_env import PRESETS, make_config, metrics
 
 
@@ -113,7 +111,7 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
     for spec in specs:
         circuit = int(spec.allocator_kwargs["circuit"])
-        group_counts = group_of_key(spec.key)
+        group_counts = group_of(spec)
         rate = measured_rate(results[spec.key])
         runs.append((circuit, group_counts, rate))
         rows.append(

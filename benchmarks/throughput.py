@@ -37,7 +37,7 @@ import numpy as np
 from _common import RESULTS_DIR, fmt_ci, markdown_table, mean_ci, run_metadata, write_results
 
 import tavc_env
-from tavc_env.simulation import Simulation
+from tavc_env.engine.simulation import Simulation
 
 SIZES = {6: None, 24: 8, 96: 32, 384: 128}  # robots -> lanes of scaled_config (None: dahl2004)
 SIM_HOURS = {6: 5.0, 24: 1.0, 96: 0.25, 384: 0.05}  # per repeat, about a second of wall each

@@ -52,10 +52,10 @@ from _common import (
 )
 from tavc_model import load_model
 
+from agents.analysis.plots import allocation_timeline
+from agents.experiments.runner import Event, TrialResult
+from agents.experiments.sweep import TrialSpec
 from agents.model import CompletionModel, SpeedClasses
-from agents.plots import allocation_timeline
-from agents.runner import Event, TrialResult
-from agents.sweep import TrialSpec
 from tavc_env import make_config, metrics
 
 PRESET = "dahl2004"

@@ -18,9 +18,9 @@ from tavc_env.config import (
     robots_from_speeds,
     scaled_config,
 )
+from tavc_env.engine.simulation import Simulation
 from tavc_env.env import ENV_NAME, TavcArenaEnv, env, parallel_env, raw_env
 from tavc_env.registration import REGISTRY_ID, register
-from tavc_env.simulation import Simulation
 
 register()
 

@@ -29,8 +29,8 @@ from pettingzoo.utils.env import AECEnv
 
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, make_config
-from tavc_env.simulation import Advance, Simulation
-from tavc_env.tasks import PHASE_NAMES, Phase
+from tavc_env.engine.simulation import Advance, ArenaSnapshot, Simulation
+from tavc_env.engine.tasks import PHASE_NAMES, Phase
 
 ENV_NAME = "tavc_arena_v0"
 RENDER_MODES = ("human", "rgb_array")
@@ -240,7 +240,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             from tavc_env.render import Renderer  # pygame is an optional extra: import lazily
 
             self._renderer = Renderer(self.config, self.render_mode)
-        frame: np.ndarray | None = self._renderer.draw(self)
+        frame: np.ndarray | None = self._renderer.draw(self.sim.snapshot(), self.delivered_value)
         return frame
 
     def close(self) -> None:
@@ -261,6 +261,21 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         require(self.sim.broken()[i], "agent", name, "a robot that is broken")
         self.sim.schedule_repair(i)
 
+    # -- read-only views of the arena ----------------------------------------------------------
+    @property
+    def sim_time_s(self) -> float:
+        """Simulated seconds since `reset`."""
+        return self.sim.time_s
+
+    @property
+    def escapes(self) -> int:
+        """Escape manoeuvres of stuck robots since `reset` (see `tavc_env.engine.navigation`)."""
+        return self.sim.escapes
+
+    def snapshot(self) -> ArenaSnapshot:
+        """The arena now: positions, headings, targets, circuits, phases (copies)."""
+        return self.sim.snapshot()
+
     # -- task priorities -----------------------------------------------------------------------
     @property
     def circuit_values(self) -> tuple[float, ...]:
@@ -277,7 +292,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             and all(is_number(w) and w > 0 for w in values)
         )
         require(ok, "circuit values", values, f"a sequence of {m} finite values > 0")
-        self.sim.tasks.values = np.array([float(w) for w in values])
+        self.sim.set_circuit_values(np.array([float(w) for w in values]))
 
     # -- helpers -------------------------------------------------------------------------------
     def _agent_index(self, agent: object, what: str) -> tuple[int, str]:

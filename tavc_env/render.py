@@ -10,14 +10,12 @@ the high-value circuit), the robots per circuit and the delivered value.
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from tavc_env.config import ArenaConfig
-
-if TYPE_CHECKING:
-    from tavc_env.env import TavcArenaEnv
+from tavc_env.engine.simulation import ArenaSnapshot
 
 try:
     import pygame
@@ -56,9 +54,10 @@ class Renderer:
         y = MARGIN_PX + (self.config.height - p[1]) * PIXELS_PER_M
         return round(x), round(y)
 
-    def draw(self, env: TavcArenaEnv) -> np.ndarray | None:
+    def draw(self, sim: ArenaSnapshot, delivered_value: float) -> np.ndarray | None:
+        """Draw the arena as `sim` shows it, with `delivered_value` (w / max w per delivery since
+        reset) in the readout; the frame in "rgb_array" mode, None in "human" mode."""
         cfg = self.config
-        sim = env.sim
         surf = self.surface
         surf.fill((250, 250, 245))
         top_left = self._px((0.0, cfg.height))
@@ -77,15 +76,15 @@ class Renderer:
             pygame.draw.polygon(
                 surf, colour, [(kx, ky - half), (kx + half, ky), (kx, ky + half), (kx - half, ky)]
             )
-        pos = sim.positions()
+        pos = sim.positions
         radius = int(cfg.robot_radius * PIXELS_PER_M)
-        moving = sim.tasks.moving
-        broken = sim.broken()
+        moving = sim.moving
+        broken = sim.broken
         for i, robot in enumerate(cfg.robots):
             centre = self._px(pos[i])
             colour = CLASS_COLOURS.get(robot.speed_class, OTHER_COLOUR)
             if moving[i]:
-                pygame.draw.line(surf, (180, 180, 180), centre, self._px(sim.tasks.target[i]), 1)
+                pygame.draw.line(surf, (180, 180, 180), centre, self._px(sim.targets[i]), 1)
             if broken[i]:
                 pygame.draw.circle(surf, colour, centre, radius, 2)
                 d = int(radius * 0.7)
@@ -95,13 +94,13 @@ class Renderer:
                 continue
             pygame.draw.circle(surf, colour, centre, radius)
             tip = pos[i] + cfg.robot_radius * np.array(
-                [np.cos(sim.heading[i]), np.sin(sim.heading[i])]
+                [np.cos(sim.headings[i]), np.sin(sim.headings[i])]
             )
             pygame.draw.line(surf, (255, 255, 255), centre, self._px(tip), 2)
-            ring = CIRCUIT_COLOURS[int(sim.tasks.circuit[i]) % len(CIRCUIT_COLOURS)]
+            ring = CIRCUIT_COLOURS[int(sim.circuits[i]) % len(CIRCUIT_COLOURS)]
             pygame.draw.circle(surf, ring, centre, radius, 3)
-        counts = np.bincount(sim.tasks.circuit[~broken], minlength=cfg.n_circuits)
-        high = int(np.argmax(sim.tasks.values))
+        counts = np.bincount(sim.circuits[~broken], minlength=cfg.n_circuits)
+        high = int(np.argmax(sim.values))
         labels = sorted(
             {r.speed_class for r in cfg.robots},
             key=lambda c: -max(r.speed for r in cfg.robots if r.speed_class == c),
@@ -110,7 +109,7 @@ class Renderer:
             sum(
                 1
                 for i, r in enumerate(cfg.robots)
-                if r.speed_class == label and not broken[i] and sim.tasks.circuit[i] == high
+                if r.speed_class == label and not broken[i] and sim.circuits[i] == high
             )
             for label in labels
         ]
@@ -118,7 +117,7 @@ class Renderer:
         lines = [
             f"t = {sim.time_s / 3600.0:6.2f} h   {'/'.join(labels)} on circuit {high}: {state}   "
             f"robots per circuit: {counts.tolist()}",
-            f"delivered value: {env.delivered_value:.1f} (w / max w per delivery)   "
+            f"delivered value: {delivered_value:.1f} (w / max w per delivery)   "
             f"broken: {int(broken.sum())}",
         ]
         for k, text in enumerate(lines):

@@ -251,7 +251,7 @@ class CrowdTrace:
     speeds: np.ndarray  # (n,) nominal top speeds
     time_s: np.ndarray  # (T,)
     pos: np.ndarray  # (T, n, 2)
-    mode: np.ndarray  # (T, n) tavc_env.tasks.Mode
+    mode: np.ndarray  # (T, n) tavc_env.engine.tasks.Mode
     station: np.ndarray  # (T, n) station index or -1
     target: np.ndarray  # (T, n, 2)
     present: np.ndarray  # (T, n) physically on the floor

@@ -1,0 +1,60 @@
+"""Baseline allocators behind the `Policy` protocol."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from agents.policy import allowed_actions, generator
+
+
+class NonLearning:
+    """Base for allocators that do not learn: `update` does nothing."""
+
+    def update(
+        self,
+        observation: np.ndarray,
+        action: int,
+        reward: float,
+        next_observation: np.ndarray,
+        info: dict[str, Any],
+    ) -> None:
+        return None
+
+
+class RandomAllocator(NonLearning):
+    """Uniformly random choice among the allowed circuits: the paper's comparison condition."""
+
+    def __init__(self) -> None:
+        self._rng: np.random.Generator | None = None
+
+    def reset(self, rng: np.random.Generator, n_actions: int) -> None:
+        self._rng = rng
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        allowed = allowed_actions(action_mask)
+        return int(allowed[generator(self._rng, self).integers(allowed.size)])
+
+
+class FixedAllocator(NonLearning):
+    """Always the same circuit (a pre-programmed robot; used for interference and model checks)."""
+
+    def __init__(self, circuit: int) -> None:
+        if not isinstance(circuit, int) or circuit < 0:
+            raise ValueError(f"circuit = {circuit!r} is invalid; allowed: a circuit index >= 0")
+        self.circuit = circuit
+
+    def reset(self, rng: np.random.Generator, n_actions: int) -> None:
+        if self.circuit >= n_actions:
+            raise ValueError(
+                f"circuit = {self.circuit} is invalid; allowed: a circuit index in [0, {n_actions - 1}]"
+            )
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        if not action_mask[self.circuit]:
+            raise ValueError(
+                f"circuit {self.circuit} is masked out (mask {action_mask.tolist()}); a fixed "
+                "allocator can only be asked when every circuit is allowed"
+            )
+        return self.circuit

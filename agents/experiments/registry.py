@@ -1,0 +1,71 @@
+"""Allocators by name, so a trial can be described by plain data (and rebuilt in a worker process).
+
+Per-robot allocators (`POLICIES`) make one independent policy per robot; team allocators (`TEAMS`)
+make one `agents.policy.Team` per trial, which coordinates its robots. Parameters are keyword
+arguments in the trial description, e.g. `("softmax_tavc", {"temperature": 0.01, "init": "paper"})`
+or `("greedy", {"model": model.to_dict()})`.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from typing import Any, TypeVar
+
+from agents.allocators.baselines import FixedAllocator, RandomAllocator
+from agents.allocators.market import AuctionAllocator
+from agents.allocators.teams import GreedyAllocator, StaticAllocator
+from agents.allocators.threshold import ResponseThresholdAllocator
+from agents.learners.tavc import epsilon_tavc, softmax_tavc
+from agents.policy import Policy, Team
+
+POLICIES: Mapping[str, Callable[..., Policy]] = {
+    "softmax_tavc": softmax_tavc,
+    "epsilon_tavc": epsilon_tavc,
+    "random": RandomAllocator,
+    "fixed": FixedAllocator,
+}
+
+TEAMS: Mapping[str, Callable[..., Team]] = {
+    "static": StaticAllocator,
+    "greedy": GreedyAllocator,
+    "auction": AuctionAllocator,
+    "response_threshold": ResponseThresholdAllocator,
+}
+
+ALLOCATORS = sorted({*POLICIES, *TEAMS})
+T = TypeVar("T")
+
+
+def _build(factory: Callable[..., T], name: str, params: Mapping[str, Any]) -> T:
+    """Call `factory(**params)`; parameters it does not take become a ValueError naming them."""
+    signature = inspect.signature(factory)
+    try:
+        signature.bind(**params)
+    except TypeError as error:
+        raise ValueError(
+            f"parameters {sorted(params)} of allocator {name!r} are invalid ({error}); "
+            f"allowed: {signature}"
+        ) from None
+    return factory(**params)
+
+
+def make_policy(name: str, **params: Any) -> Policy:
+    """A fresh policy of the named per-robot allocator."""
+    if name not in POLICIES:
+        hint = " (a team allocator: use make_allocator)" if name in TEAMS else ""
+        raise ValueError(
+            f"allocator {name!r} is not a per-robot policy{hint}; allowed: {sorted(POLICIES)}"
+        )
+    return _build(POLICIES[name], name, params)
+
+
+def make_allocator(name: str, **params: Any) -> Callable[[str], Policy] | Team:
+    """What `agents.experiments.runner.run_trial` takes for the named allocator: a `Team`, or a factory
+    making a fresh per-robot policy for each agent."""
+    if name in TEAMS:
+        return _build(TEAMS[name], name, params)
+    if name not in POLICIES:
+        raise ValueError(f"allocator {name!r} is unknown; allowed: {ALLOCATORS}")
+    make_policy(name, **params)  # bad parameters fail here, before the trial starts
+    return lambda agent: make_policy(name, **params)

@@ -1,0 +1,345 @@
+"""The sweep runner: many independent trials in parallel, saved as they finish, resumable.
+
+A sweep is a list of `TrialSpec`s (plain data: allocator name and parameters, env arguments,
+seed, periods). Each finished trial is written at once to `<out_dir>/<key>.json` (atomically), so a
+killed sweep loses at most the trials that were running; rerunning the same sweep loads the
+finished ones and runs only the rest.
+
+Backends: `"local"` (default) runs trials in a process pool over this machine's cores and needs
+nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
+or, with `RAY_ADDRESS` set, on a cluster whose nodes have this package installed. Either way the
+driver writes each result the moment it arrives, so the two backends resume each other's sweeps.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import json
+import os
+import re
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Generic, TypeVar
+
+from tqdm import tqdm
+
+from agents.experiments.registry import make_allocator
+from agents.experiments.runner import Event, TrialResult, run_trial
+
+_KEY = re.compile(r"^[A-Za-z0-9_.=-]+$")
+BACKENDS = ("local", "ray")
+
+
+TagValue = str | int | float | bool | tuple[str | int | float | bool, ...]
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One trial as data. `key` names its result file and must be unique within a sweep.
+
+    `tags` say what the trial stands for in its study (condition, arena, temperature, seed, ...):
+    reports group trials by them. A study derives `key` from its tags; nothing parses a key back.
+    Tags are labels, not settings: a saved trial resumes whatever its tags.
+    """
+
+    key: str
+    allocator: str
+    seed: int
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    allocator_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    convergence_s: float = 15 * 3600.0
+    measured_s: float = 5 * 3600.0
+    snapshot_every_s: float = 3600.0
+    events: tuple[Event, ...] = ()
+    tags: Mapping[str, TagValue] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not _KEY.match(self.key):
+            raise ValueError(
+                f"key = {self.key!r} is invalid; allowed: letters, digits and _ . = - (a file name)"
+            )
+        scalar = (str, int, float, bool)
+        for name, value in dict(self.tags).items():
+            ok = isinstance(name, str) and (
+                isinstance(value, scalar)
+                or (isinstance(value, (tuple, list)) and all(isinstance(v, scalar) for v in value))
+            )
+            if not ok:
+                raise ValueError(
+                    f"tag {name!r} = {value!r} of trial {self.key!r} is invalid; allowed: a text "
+                    "name and a str, int, float or bool value (or a tuple of them)"
+                )
+
+
+def run_spec(spec: TrialSpec) -> TrialResult:
+    """Run one trial described by `spec` (in whatever process calls it)."""
+    return run_trial(
+        make_allocator(spec.allocator, **spec.allocator_kwargs),
+        seed=spec.seed,
+        convergence_s=spec.convergence_s,
+        measured_s=spec.measured_s,
+        snapshot_every_s=spec.snapshot_every_s,
+        label=spec.key,
+        events=spec.events,
+        **dict(spec.env_kwargs),
+    )
+
+
+def result_path(out_dir: Path, key: str) -> Path:
+    return out_dir / f"{key}.json"
+
+
+def spec_record(spec: TrialSpec) -> dict[str, Any]:
+    """The spec as plain JSON data (what a saved result is checked against on resume), with a
+    digest of the arena it resolves to: a preset whose definition changed (a new default physics
+    step, say) no longer matches the trials saved under the old one."""
+    data: dict[str, Any] = json.loads(json.dumps(asdict(spec), default=repr))
+    if not data["events"]:
+        del data["events"]  # trials saved before events existed had none; they still resume
+    if not data["tags"]:
+        del data["tags"]
+    data["arena"] = arena_digest(spec.env_kwargs)
+    return data
+
+
+def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
+    """A short digest of the arena configuration that `env_kwargs` resolve to (the env's own
+    arguments, such as time limits, are not part of the arena)."""
+    from tavc_env import make_config
+    from tavc_env.env import TavcArenaEnv
+
+    env_only = set(inspect.signature(TavcArenaEnv.__init__).parameters) - {"preset", "config"}
+    arena = {k: v for k, v in env_kwargs.items() if k not in env_only}
+    config = make_config(arena.pop("preset", "dahl2004"), **arena)
+    return hashlib.sha256(repr(config).encode()).hexdigest()[:16]
+
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+@dataclass(frozen=True)
+class JobKind(Generic[J, R]):
+    """How one kind of job is run, named, saved and checked on resume.
+
+    `run` must be a module-level function (it is sent to worker processes or Ray tasks);
+    `record(job)` is the job as plain JSON data, stored beside the result: a saved result is only
+    resumed for a job whose record it matches (`same(stored, wanted)`, equality by default). `save(result, record, path)` writes atomically and
+    `load(path)` returns the result and its stored record.
+    """
+
+    run: Callable[[J], R]
+    key: Callable[[J], str]
+    record: Callable[[J], dict[str, Any]]
+    save: Callable[[R, dict[str, Any], Path], None]
+    load: Callable[[Path], tuple[R, dict[str, Any] | None]]
+    unit: str = "job"
+    same: Callable[[dict[str, Any] | None, dict[str, Any]], bool] = field(
+        default=lambda stored, wanted: stored == wanted
+    )
+
+
+def run_jobs(
+    jobs: Sequence[J],
+    kind: JobKind[J, R],
+    out_dir: str | Path,
+    workers: int | None = None,
+    on_done: Callable[[J, R, bool], None] | None = None,
+    progress_bar: bool = False,
+    backend: str = "local",
+) -> dict[str, R]:
+    """Run every job not already finished in `out_dir` (one file per job key); return all results
+    by key. See `run_sweep` for the arguments; `run_sweep` is this for trials."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend = {backend!r} is invalid; allowed: {list(BACKENDS)}")
+    if progress_bar:
+        bar = tqdm(total=len(jobs), unit=kind.unit, dynamic_ncols=True, file=sys.stdout)
+        user_on_done = on_done
+
+        def on_done(job: J, result: R, resumed: bool) -> None:
+            bar.update(1)
+            bar.set_postfix_str(f"{kind.key(job)}{' (resumed)' if resumed else ''}")
+            if user_on_done is not None:
+                user_on_done(job, result, resumed)
+
+        try:
+            return run_jobs(jobs, kind, out_dir, workers, on_done, backend=backend)
+        finally:
+            bar.close()
+
+    keys = [kind.key(j) for j in jobs]
+    duplicates = sorted({k for k in keys if keys.count(k) > 1})
+    if duplicates:
+        raise ValueError(f"duplicate {kind.unit} keys {duplicates}; allowed: unique keys")
+    bad = [k for k in keys if not _KEY.match(k)]
+    if bad:
+        raise ValueError(
+            f"{kind.unit} keys {bad} are invalid; allowed: letters, digits and _ . = - (file names)"
+        )
+    n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    if not isinstance(n_workers, int) or n_workers < 1:
+        raise ValueError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, R] = {}
+    todo: list[J] = []
+    for job in jobs:
+        key = kind.key(job)
+        path = result_path(out, key)
+        if not path.exists():
+            todo.append(job)
+            continue
+        stored, record = kind.load(path)
+        if not kind.same(record, kind.record(job)):
+            raise ValueError(
+                f"{path} holds {kind.unit} {key!r} run with different settings "
+                f"({record or 'unknown'}); allowed: the same settings to resume, or another "
+                "output folder (or delete the file) for new ones"
+            )
+        results[key] = stored
+        if on_done is not None:
+            on_done(job, stored, True)
+
+    def finish(job: J, result: R) -> None:
+        key = kind.key(job)
+        kind.save(result, kind.record(job), result_path(out, key))
+        results[key] = result
+        if on_done is not None:
+            on_done(job, result, False)
+
+    if backend == "ray":
+        _run_on_ray(todo, kind.run, n_workers if workers is not None else None, finish)
+        return results
+    if n_workers == 1 or len(todo) <= 1:
+        for job in todo:
+            finish(job, kind.run(job))
+        return results
+    with ProcessPoolExecutor(max_workers=min(n_workers, len(todo))) as pool:
+        futures = {pool.submit(kind.run, job): job for job in todo}
+        for future in as_completed(futures):
+            finish(futures[future], future.result())
+    return results
+
+
+def _save_trial(result: TrialResult, record: dict[str, Any], path: Path) -> None:
+    result.spec = record
+    result.save(path)
+
+
+def _load_trial(path: Path) -> tuple[TrialResult, dict[str, Any] | None]:
+    result = TrialResult.load(path)
+    return result, result.spec
+
+
+def _same_trial(stored: dict[str, Any] | None, wanted: dict[str, Any]) -> bool:
+    if stored is None:
+        return False
+    # Tags are labels, not settings (and trials saved before tags existed have none).
+    stored = {k: v for k, v in stored.items() if k != "tags"}
+    wanted = {k: v for k, v in wanted.items() if k != "tags"}
+    if "arena" not in stored:
+        # Saved before records carried the arena's digest (November 2026), when every preset
+        # still had its original definition: taken as made with the arena it names today.
+        return stored == {k: v for k, v in wanted.items() if k != "arena"}
+    return stored == wanted
+
+
+TRIALS: JobKind[TrialSpec, TrialResult] = JobKind(
+    run=run_spec,
+    key=lambda spec: spec.key,
+    record=spec_record,
+    save=_save_trial,
+    load=_load_trial,
+    unit="trial",
+    same=_same_trial,
+)
+
+
+def run_sweep(
+    specs: Sequence[TrialSpec],
+    out_dir: str | Path,
+    workers: int | None = None,
+    on_done: Callable[[TrialSpec, TrialResult, bool], None] | None = None,
+    progress_bar: bool = False,
+    backend: str = "local",
+) -> dict[str, TrialResult]:
+    """Run every spec not already finished in `out_dir`; return all results by key.
+
+    `workers`: processes (default: all cores; 1 runs in this process). `on_done(spec, result,
+    resumed)` is called for each trial as it becomes available (resumed: loaded from disk).
+    `progress_bar`: show a tqdm bar over trials on standard output. `backend`: one of `BACKENDS`
+    (with `"ray"`, `workers` caps the CPUs of a Ray instance started here; ignored when joining
+    a running cluster through `RAY_ADDRESS`).
+    """
+    return run_jobs(specs, TRIALS, out_dir, workers, on_done, progress_bar, backend)
+
+
+def json_jobs(
+    run: Callable[[J], dict[str, Any]], key: Callable[[J], str], unit: str = "run"
+) -> JobKind[J, dict[str, Any]]:
+    """A `JobKind` for jobs that are frozen dataclasses and results that are JSON data: each is
+    saved as `{"record": <the job>, "result": <the result>}`."""
+
+    def record(job: J) -> dict[str, Any]:
+        data: dict[str, Any] = json.loads(json.dumps(asdict(job), default=repr))  # type: ignore[call-overload]
+        return data
+
+    def save(result: dict[str, Any], rec: dict[str, Any], path: Path) -> None:
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        tmp.write_text(json.dumps({"record": rec, "result": result}))
+        tmp.replace(path)
+
+    def load(path: Path) -> tuple[dict[str, Any], dict[str, Any] | None]:
+        data = json.loads(path.read_text())
+        return data["result"], data.get("record")
+
+    return JobKind(run=run, key=key, record=record, save=save, load=load, unit=unit)
+
+
+def _run_on_ray(
+    todo: Sequence[J],
+    run: Callable[[J], R],
+    workers: int | None,
+    finish: Callable[[J, R], None],
+) -> None:
+    """Run `todo` as Ray tasks (one CPU each), finishing each result as soon as it arrives."""
+    if not todo:
+        return
+    try:
+        import ray
+    except ImportError as error:
+        raise ImportError(
+            "backend 'ray' needs Ray; install it with: pip install 'tavc-env[ray]' "
+            "(or pip install ray)"
+        ) from error
+    started_here = not ray.is_initialized()
+    if started_here:
+        address = os.environ.get("RAY_ADDRESS")
+        if address:
+            ray.init(address=address, log_to_driver=False)
+        else:
+            # Local workers see the driver's import path, so job functions defined in scripts
+            # (e.g. benchmarks/interference.py) import there as they do here.
+            path = os.pathsep.join(p for p in sys.path if p)
+            ray.init(
+                num_cpus=workers,
+                include_dashboard=False,
+                log_to_driver=False,
+                runtime_env={"env_vars": {"PYTHONPATH": path}},
+            )
+    task = ray.remote(num_cpus=1)(run)
+    pending = {task.remote(job): job for job in todo}
+    try:
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                finish(pending.pop(ref), ray.get(ref))
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if started_here:
+            ray.shutdown()

@@ -1,0 +1,397 @@
+"""The robots' low-level controller: drive to a target point, avoid walls and other robots.
+
+Behaviour-based and reactive, like the paper's Pioneers in an open room. Each robot is a unicycle:
+it turns at a bounded rate and drives forward along its heading. Three behaviours are blended:
+
+* *go to target*: head for the target point, slowing down over the last metre;
+* *avoid*: a robot ahead in the way (closer than the target, inside the corridor the robot sweeps)
+  deflects the desired heading sideways, away from it, and robots dead ahead are passed on the
+  right; so a faster robot overtakes a slower one where there is room, and robots meeting head-on
+  pass each other;
+* *keep apart*: robots closer than a small margin push away from each other and from walls.
+
+Speed is capped by the free distance along the current heading (a robot brakes behind a robot it
+cannot yet pass) and by the heading error (it turns on the spot when the target is behind it).
+
+The per-tick loop over robot pairs is one function, compiled by numba when it is installed (the
+physics loop calls it every 0.1 s of simulated time, so interpreted Python would dominate the run
+time); without numba the same function runs as plain Python.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from tavc_env.config import ArenaConfig
+
+try:
+    from numba import njit as _njit
+
+    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
+        return _njit(cache=True, fastmath=False, nogil=True)(fn)
+
+except ImportError:  # pragma: no cover - numba is a dependency; this keeps a broken install usable
+
+    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
+        return fn
+
+
+STEER_GAIN = 1.5  # sideways deflection per unit of obstacle weight
+CORRIDOR_MARGIN_M = 0.15  # extra width beyond two radii that counts as "in the way"
+KEEP_APART_MARGIN_M = 0.08
+BRAKE_DISTANCE_M = 0.3  # free distance below which a robot slows linearly to a stop
+BRAKE_GAP_M = 0.03
+APPROACH_TIME_S = 1.0  # speed near the target is capped at distance / this time
+ARRIVED_M = 0.03  # closer than this to its target a robot holds still
+WALL_RANGE_M = 0.25
+# Escape behaviour (see Simulation): a robot that has not moved STUCK_RADIUS_M in STUCK_PATIENCE_S
+# while away from its target drives ESCAPE_DISTANCE_M away from its neighbours for up to
+# ESCAPE_TIME_S. Reactive controllers can knot in dense crowds; this is the behaviour-based cure.
+STUCK_RADIUS_M = 0.15
+STUCK_PATIENCE_S = 30.0
+ESCAPE_DISTANCE_M = 1.0
+ESCAPE_TIME_S = 4.0
+
+
+class SteerArgs(NamedTuple):
+    """The arguments of `steer_all` (and, followed by the grid cell, of `steer_all_grid`), in
+    order: the robots' state, the controller's constants and the output buffers."""
+
+    pos: np.ndarray  # (n, 2) centres
+    heading: np.ndarray  # (n,) headings, read and updated in place
+    target: np.ndarray  # (n, 2) where each robot drives
+    moving: np.ndarray  # (n,) bool: drives (False: holds still)
+    top_speed: np.ndarray  # (n,) this leg's top speed
+    present: np.ndarray  # (n,) bool: on the floor (False: broken)
+    radius: float
+    sensing: float
+    turn_step: float  # largest heading change per tick
+    width: float
+    height: float
+    out_velocity: np.ndarray  # (n, 2) commands written here
+    out_heading: np.ndarray  # (n,) new headings written here
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+_clip_c = _compile(_clip)
+
+
+def _steer_one(
+    i: int,
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    turn_step: float,
+    width: float,
+    height: float,
+    others: np.ndarray,
+    n_others: int,
+    out_velocity: np.ndarray,
+    out_heading: np.ndarray,
+) -> None:
+    """Robot i's command, considering the robots `others[:n_others]` (in increasing index order,
+    so sums come out the same whichever way they were found)."""
+    corridor = 2.0 * radius + CORRIDOR_MARGIN_M
+    near = 2.0 * radius + KEEP_APART_MARGIN_M
+    contact = 2.0 * radius
+    wall_lo = radius + WALL_RANGE_M
+    px = pos[i, 0]
+    py = pos[i, 1]
+    gx = target[i, 0] - px
+    gy = target[i, 1] - py
+    gdist = math.sqrt(gx * gx + gy * gy)
+    out_heading[i] = heading[i]
+    out_velocity[i, 0] = 0.0
+    out_velocity[i, 1] = 0.0
+    if not (moving[i] and present[i] and gdist > ARRIVED_M):
+        return
+    ux = gx / gdist
+    uy = gy / gdist
+    steer = 0.0
+    push_x = 0.0
+    push_y = 0.0
+    for k in range(n_others):
+        j = others[k]
+        if j == i or not present[j]:
+            continue
+        dx = pos[j, 0] - px
+        dy = pos[j, 1] - py
+        dist = math.sqrt(dx * dx + dy * dy)
+        ahead = dx * ux + dy * uy
+        lateral = ux * dy - uy * dx  # > 0: the other robot is on the left
+        if ahead > 0.0 and abs(lateral) < corridor and dist < sensing and dist < gdist:
+            w = _clip_c((sensing - dist) / (sensing - contact), 0.0, 1.0)
+            w *= 1.0 - abs(lateral) / corridor
+            steer += -w if lateral < 0.0 else w
+        if dist < near:
+            overlap = min((near - dist) / KEEP_APART_MARGIN_M, 2.0)
+            inv = overlap / max(dist, 1e-9)
+            push_x -= inv * dx
+            push_y -= inv * dy
+    steer = _clip_c(steer, -2.0, 2.0)
+    # +steer turns toward the right-hand normal (uy, -ux) of the goal direction.
+    want_x = ux + STEER_GAIN * steer * uy + push_x
+    want_y = uy - STEER_GAIN * steer * ux + push_y
+    want_x += _clip_c((wall_lo - px) / WALL_RANGE_M, 0.0, 1.0)
+    want_x -= _clip_c((px - (width - wall_lo)) / WALL_RANGE_M, 0.0, 1.0)
+    want_y += _clip_c((wall_lo - py) / WALL_RANGE_M, 0.0, 1.0)
+    want_y -= _clip_c((py - (height - wall_lo)) / WALL_RANGE_M, 0.0, 1.0)
+
+    phi = math.atan2(want_y, want_x)
+    err = (phi - heading[i] + math.pi) % (2.0 * math.pi) - math.pi
+    turn = _clip_c(err, -turn_step, turn_step)
+    h = (heading[i] + turn + math.pi) % (2.0 * math.pi) - math.pi
+    c = max(math.cos(err - turn), 0.0)
+    speed = min(top_speed[i] * c * c, gdist / APPROACH_TIME_S)
+
+    hx = math.cos(h)
+    hy = math.sin(h)
+    free = math.inf
+    for k in range(n_others):
+        j = others[k]
+        if j == i or not present[j]:
+            continue
+        dx = pos[j, 0] - px
+        dy = pos[j, 1] - py
+        along = dx * hx + dy * hy
+        across = abs(hx * dy - hy * dx)
+        if along > 0.0 and across < contact:
+            free = min(free, along - math.sqrt(contact * contact - across * across))
+    speed *= _clip_c((free - BRAKE_GAP_M) / BRAKE_DISTANCE_M, 0.0, 1.0)
+    out_heading[i] = h
+    out_velocity[i, 0] = speed * hx
+    out_velocity[i, 1] = speed * hy
+
+
+_steer_one_c = _compile(_steer_one)
+
+
+def _steer_all(
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    turn_step: float,
+    width: float,
+    height: float,
+    out_velocity: np.ndarray,
+    out_heading: np.ndarray,
+) -> None:
+    """Every robot's command, each considering every other robot (O(n^2); best for small teams)."""
+    n = pos.shape[0]
+    everyone = np.arange(n)
+    for i in range(n):
+        _steer_one_c(
+            i,
+            pos,
+            heading,
+            target,
+            moving,
+            top_speed,
+            present,
+            radius,
+            sensing,
+            turn_step,
+            width,
+            height,
+            everyone,
+            n,
+            out_velocity,
+            out_heading,
+        )
+
+
+def neighbour_cell_m(radius: float, sensing: float) -> float:
+    """The grid cell size beyond which no robot can change another's command: the sensing range
+    (steering, keeping apart) or the distance at which a robot ahead starts to brake one."""
+    contact = 2.0 * radius
+    brake = math.hypot(BRAKE_GAP_M + BRAKE_DISTANCE_M + contact, contact)
+    return max(sensing, brake) * (1.0 + 1e-9)
+
+
+def _steer_all_grid(
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    turn_step: float,
+    width: float,
+    height: float,
+    out_velocity: np.ndarray,
+    out_heading: np.ndarray,
+    cell: float,
+) -> None:
+    """`steer_all` for large teams: robots are binned into square cells of side `cell`
+    (`neighbour_cell_m`), and each robot considers only those in the 3 x 3 cells around it, in
+    increasing index order, so the commands are exactly those of `steer_all` in O(n) time."""
+    n = pos.shape[0]
+    nx = max(int(width / cell) + 1, 1)
+    ny = max(int(height / cell) + 1, 1)
+    cx = np.empty(n, np.int64)
+    cy = np.empty(n, np.int64)
+    start = np.zeros(nx * ny + 1, np.int64)
+    for i in range(n):
+        cx[i] = min(max(int(pos[i, 0] / cell), 0), nx - 1)
+        cy[i] = min(max(int(pos[i, 1] / cell), 0), ny - 1)
+        if present[i]:
+            start[cy[i] * nx + cx[i] + 1] += 1
+    for k in range(nx * ny):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    items = np.empty(n, np.int64)
+    for i in range(n):  # in index order, so each cell lists its robots in increasing order
+        if present[i]:
+            c = cy[i] * nx + cx[i]
+            items[fill[c]] = i
+            fill[c] += 1
+    others = np.empty(n, np.int64)
+    for i in range(n):
+        m = 0
+        for yy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
+            for xx in range(max(cx[i] - 1, 0), min(cx[i] + 2, nx)):
+                c = yy * nx + xx
+                for k in range(start[c], start[c + 1]):
+                    others[m] = items[k]
+                    m += 1
+        # the cells are visited row by row: merge them into increasing index order
+        for a in range(1, m):
+            v = others[a]
+            b = a - 1
+            while b >= 0 and others[b] > v:
+                others[b + 1] = others[b]
+                b -= 1
+            others[b + 1] = v
+        _steer_one_c(
+            i,
+            pos,
+            heading,
+            target,
+            moving,
+            top_speed,
+            present,
+            radius,
+            sensing,
+            turn_step,
+            width,
+            height,
+            others,
+            m,
+            out_velocity,
+            out_heading,
+        )
+
+
+steer_all_grid = _compile(_steer_all_grid)
+GRID_MIN_ROBOTS = 16  # from this team size on the grid is faster than all pairs
+steer_all = _compile(_steer_all)
+
+
+def _arrivals(pos: np.ndarray, target: np.ndarray, trigger: np.ndarray, out: np.ndarray) -> int:
+    """Write into `out` the robots within their trigger distance of their target; return how many.
+    A trigger <= 0 never fires."""
+    k = 0
+    for i in range(pos.shape[0]):
+        if trigger[i] > 0.0:
+            dx = target[i, 0] - pos[i, 0]
+            dy = target[i, 1] - pos[i, 1]
+            if dx * dx + dy * dy <= trigger[i] * trigger[i]:
+                out[k] = i
+                k += 1
+    return k
+
+
+arrivals = _compile(_arrivals)
+
+
+def _stuck(
+    pos: np.ndarray,
+    target: np.ndarray,
+    active: np.ndarray,
+    anchor: np.ndarray,
+    anchor_time: np.ndarray,
+    now: float,
+    patience_s: float,
+    out: np.ndarray,
+) -> int:
+    """Robots making no progress: write into `out` every active robot, away from its target, that
+    has stayed within `STUCK_RADIUS_M` of its anchor for `patience_s`; return how many. Anchors
+    (position and time) follow each robot whenever it moves further than that, or is inactive or
+    at its target."""
+    k = 0
+    for i in range(pos.shape[0]):
+        dx = pos[i, 0] - anchor[i, 0]
+        dy = pos[i, 1] - anchor[i, 1]
+        tx = target[i, 0] - pos[i, 0]
+        ty = target[i, 1] - pos[i, 1]
+        waiting = (not active[i]) or tx * tx + ty * ty <= STUCK_RADIUS_M * STUCK_RADIUS_M
+        if waiting or dx * dx + dy * dy > STUCK_RADIUS_M * STUCK_RADIUS_M:
+            anchor[i, 0] = pos[i, 0]
+            anchor[i, 1] = pos[i, 1]
+            anchor_time[i] = now
+        elif now - anchor_time[i] >= patience_s:
+            out[k] = i
+            k += 1
+    return k
+
+
+stuck = _compile(_stuck)
+
+
+def _after_step(
+    pos: np.ndarray,
+    target: np.ndarray,
+    trigger: np.ndarray,
+    moving: np.ndarray,
+    present: np.ndarray,
+    anchor: np.ndarray,
+    anchor_time: np.ndarray,
+    now: float,
+    patience_s: float,
+    stuck_too: bool,
+    arrived: np.ndarray,
+    stalled: np.ndarray,
+) -> tuple[int, int]:
+    """`arrivals`, then, if nobody arrived and `stuck_too`, `stuck` over the robots moving on the
+    floor, in one call (the common tick). Returns (arrived count, stalled count or -1 if the stuck
+    check was not run because an arrival may change who is moving)."""
+    k = _arrivals_c(pos, target, trigger, arrived)
+    if k > 0 or not stuck_too:
+        return k, -1
+    active = moving & present
+    return 0, _stuck_c(pos, target, active, anchor, anchor_time, now, patience_s, stalled)
+
+
+_arrivals_c = arrivals
+_stuck_c = stuck
+after_step = _compile(_after_step)
+
+
+class Navigator:
+    """The controller's constants for one arena (the compiled functions above take them)."""
+
+    def __init__(self, config: ArenaConfig) -> None:
+        self.radius = config.robot_radius
+        self.sensing = config.sensing_range_m
+        self.turn_step = config.max_turn_rate * config.dt
+        self.width = config.width
+        self.height = config.height

@@ -1,0 +1,481 @@
+"""The arena engine: physics world + navigation + task cycle, advanced tick by tick.
+
+This is the one engine every adapter (the PettingZoo env, benchmarks, renderers) drives. It knows
+circuits, tasks and time; it knows nothing of observations, rewards or agents' names.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple, Protocol
+
+import numpy as np
+
+from tavc_env.config import ArenaConfig
+from tavc_env.engine.navigation import (
+    ESCAPE_DISTANCE_M,
+    ESCAPE_TIME_S,
+    GRID_MIN_ROBOTS,
+    STUCK_PATIENCE_S,
+    Navigator,
+    SteerArgs,
+    after_step,
+    neighbour_cell_m,
+    steer_all,
+    steer_all_grid,
+    stuck,
+)
+from tavc_env.engine.tasks import Completion, Phase, TaskCycle
+from tavc_env.engine.world import World
+
+
+class Scheduled(enum.IntEnum):
+    """What a schedule entry does (breakdowns sort before repairs at the same time)."""
+
+    BREAK_DOWN = 0
+    REPAIR = 1
+
+
+class ScheduleEntry(NamedTuple):
+    """A breakdown or repair due at `at_s`; a breakdown's `repair_after_s` schedules its repair
+    (negative: none). Entries sort by time, then kind, then robot."""
+
+    at_s: float
+    kind: Scheduled
+    robot: int
+    repair_after_s: float = -1.0
+
+
+class EngineEvent(NamedTuple):
+    """Something that happened during a tick, as handed to observers: `kind` is one of
+    "completion", "breakdown", "repair" or "escape"; `circuit` and `task_time_s` are set for a
+    completion only."""
+
+    time_s: float
+    kind: str
+    robot: int
+    circuit: int = -1
+    task_time_s: float = math.nan
+
+
+class Observer(Protocol):
+    """Instrumentation attached with `Simulation.add_observer`: called at the end of every tick,
+    after the physics step and every task event of that tick. Observers read the simulation
+    through its public views (`time_s`, `positions_view`, `modes`, ...) and change nothing; they
+    cannot alter a trajectory."""
+
+    def on_tick(self, sim: Simulation, events: list[EngineEvent]) -> None:
+        """`events`: what happened in this tick (usually nothing)."""
+
+
+@dataclass(frozen=True)
+class ArenaSnapshot:
+    """The arena at one moment, for drawing or recording (copies: it never changes)."""
+
+    time_s: float
+    positions: np.ndarray  # (n, 2)
+    headings: np.ndarray  # (n,)
+    targets: np.ndarray  # (n, 2)
+    circuits: np.ndarray  # (n,) the circuit each robot serves now
+    phases: np.ndarray  # (n,) `Phase` codes
+    moving: np.ndarray  # (n,) bool
+    broken: np.ndarray  # (n,) bool
+    values: np.ndarray  # (m,) the circuits' values now
+
+
+@dataclass
+class Advance:
+    """What happened during one call to `Simulation.advance`."""
+
+    completions: list[Completion] = field(default_factory=list)
+    repaired: list[int] = field(default_factory=list)
+    broken: list[int] = field(default_factory=list)
+    duration_s: float = 0.0
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.setflags(write=False)
+    return view
+
+
+class Simulation:
+    """One arena in motion. Call `reset(rng)` before use; `rng` drives every random draw."""
+
+    def __init__(self, config: ArenaConfig) -> None:
+        self.config = config
+        self.world = World(config)
+        self.nav = Navigator(config)
+        self.tasks = TaskCycle(config)
+        n = config.n_robots
+        self.speeds = np.array([r.speed for r in config.robots], dtype=float)
+        self.speed_factor = np.ones(n)
+        self.top_speed = self.speeds.copy()  # speeds * speed_factor, updated at each new leg
+        self.heading = np.zeros(n)
+        self._pos = np.zeros((n, 2))  # positions after the last physics step
+        self._hits = np.zeros(n, dtype=np.int64)
+        self._stalled = np.zeros(n, dtype=np.int64)
+        self._dt = config.dt
+        self._steer = steer_all
+        self._steer_args: SteerArgs | None = None
+        self._steer_extra: tuple[float, ...] = ()  # the grid cell, for steer_all_grid
+        self._bound: tuple[object, ...] = (None,) * 4
+        self._next_service = math.inf  # earliest end of a loading / unloading
+        # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
+        self._grid_cell = (
+            neighbour_cell_m(config.robot_radius, config.sensing_range_m)
+            if n >= GRID_MIN_ROBOTS
+            else 0.0
+        )
+        self._anchor = np.zeros((n, 2))  # where each robot last made progress ...
+        self._anchor_time = np.zeros(n)  # ... and when
+        self._escape_until = np.zeros(n)  # end of a robot's escape manoeuvre (0: none)
+        self._escape_target = np.zeros((n, 2))
+        self.escapes = 0  # escape manoeuvres started since reset
+        self.time_s = 0.0
+        self.ticks = 0
+        self._rng: np.random.Generator | None = None
+        self._schedule: list[ScheduleEntry] = []
+        self._observers: list[Observer] = []
+
+    # -- life cycle ----------------------------------------------------------------------------
+    @property
+    def rng(self) -> np.random.Generator:
+        """The generator passed to `reset` (every random draw of the arena comes from it)."""
+        if self._rng is None:
+            raise ValueError(
+                "the simulation has no random generator yet; allowed: call reset(rng) first"
+            )
+        return self._rng
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Rebuild the world and put robots at the sinks, spread evenly over circuits in an order
+        drawn from `rng` (never by speed). Everyone starts deciding."""
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(
+                f"rng = {rng!r} is invalid; allowed: a numpy.random.Generator "
+                "(e.g. numpy.random.default_rng(seed))"
+            )
+        cfg = self.config
+        self._rng = rng
+        self.world = World(cfg)
+        self.tasks = TaskCycle(cfg)
+        self.time_s = 0.0
+        self.ticks = 0
+        n, m = cfg.n_robots, cfg.n_circuits
+        order = rng.permutation(n)
+        positions = np.zeros((n, 2))
+        per_circuit = [0] * m
+        for rank, i in enumerate(order):
+            c = rank % m
+            k = per_circuit[c]
+            per_circuit[c] += 1
+            sink = self.tasks.stations[self.tasks.sink_of(c)]
+            positions[i] = sink.dock if k == 0 else sink.slots[k - 1]
+            self.tasks.start(int(i), c)
+        self.world.place(positions)
+        self.world.sync_positions()
+        self._pos = self.world.pos
+        self._anchor = self._pos.copy()
+        self._anchor_time = np.zeros(n)
+        self._escape_until = np.zeros(n)
+        self.escapes = 0
+        self.heading = rng.uniform(-math.pi, math.pi, size=n)
+        self.speed_factor = np.ones(n)
+        self.top_speed = self.speeds.copy()
+        self._schedule = sorted(
+            ScheduleEntry(
+                b.at_s,
+                Scheduled.BREAK_DOWN,
+                b.robot,
+                -1.0 if b.repair_after_s is None else b.repair_after_s,
+            )
+            for b in cfg.breakdowns
+        )
+        self._next_service = math.inf
+
+    # -- decisions and failures ----------------------------------------------------------------
+    def choose(self, robot: int, circuit: int) -> None:
+        """A deciding robot starts a task on `circuit`."""
+        self._check_reset()
+        self.tasks.choose(robot, circuit, self.time_s)
+        self._new_leg(robot)
+
+    def _new_leg(self, robot: int) -> None:
+        noise = self.config.speed_noise
+        if noise > 0:
+            self.speed_factor[robot] = float(
+                np.clip(1.0 + noise * self.rng.standard_normal(), 0.5, 1.5)
+            )
+            self.top_speed[robot] = self.speeds[robot] * self.speed_factor[robot]
+
+    def break_down(self, robot: int) -> None:
+        if self.tasks.phase[robot] == Phase.BROKEN:
+            return
+        self.tasks.break_down(robot)
+        self.world.remove_robot(robot)
+        self._pos = self.world.pos  # the world may now keep positions in another array
+        self._next_service = float(self.tasks.service_until.min())
+
+    def schedule_repair(self, robot: int) -> None:
+        """Repair `robot` at the end of the next tick, so the repair is a decision epoch like any
+        scheduled one."""
+        self._schedule.append(ScheduleEntry(self.time_s, Scheduled.REPAIR, robot))
+        self._schedule.sort()
+
+    def repair(self, robot: int) -> None:
+        if self.tasks.phase[robot] != Phase.BROKEN:
+            return
+        self.world.restore_robot(robot, self.rng)
+        self.world.sync_positions()
+        self._pos = self.world.pos
+        self.tasks.repair(robot)
+        # Any other repair still scheduled for this robot belongs to a breakdown that is over.
+        self._schedule = [
+            e for e in self._schedule if not (e.kind == Scheduled.REPAIR and e.robot == robot)
+        ]
+
+    # -- time ----------------------------------------------------------------------------------
+    def advance(self, max_duration_s: float, stop_on_decision: bool = True) -> Advance:
+        """Run ticks until a robot needs a decision (if `stop_on_decision`) or the duration ends.
+
+        Returns at the end of the tick in which the first decision epoch happened, with every
+        completion, breakdown and repair of that call.
+        """
+        self._check_reset()
+        out = Advance()
+        start = self.time_s
+        dt = self.config.dt
+        n_ticks = max(1, round(max_duration_s / dt))
+        for _ in range(n_ticks):
+            self._tick(out)
+            if stop_on_decision and (out.completions or out.repaired):
+                break
+        out.duration_s = self.time_s - start
+        return out
+
+    def _bind(self) -> None:
+        """Fix the steering call's arguments: the same arrays every tick (updated in place),
+        rebuilt after a reset or when robots leave or re-enter the floor."""
+        world, nav, tasks = self.world, self.nav, self.tasks
+        self._pos = world.pos
+        self._steer_args = SteerArgs(
+            pos=world.pos,
+            heading=self.heading,  # read and written in place: each robot reads only its own
+            target=tasks.target,
+            moving=tasks.moving,
+            top_speed=self.top_speed,
+            present=world.in_space,
+            radius=nav.radius,
+            sensing=nav.sensing,
+            turn_step=nav.turn_step,
+            width=nav.width,
+            height=nav.height,
+            out_velocity=world.velocity_out,
+            out_heading=self.heading,
+        )
+        if self._grid_cell > 0:
+            self._steer, self._steer_extra = steer_all_grid, (self._grid_cell,)
+        else:
+            self._steer, self._steer_extra = steer_all, ()
+        self._bound = (world.version, tasks, self.heading, self.top_speed)
+
+    def _tick(self, out: Advance) -> None:
+        if self._observers:
+            marks = (len(out.completions), len(out.broken), len(out.repaired), self.escapes)
+        world, tasks = self.world, self.tasks
+        bound = self._bound
+        if (
+            bound[0] != world.version
+            or bound[1] is not tasks
+            or bound[2] is not self.heading
+            or bound[3] is not self.top_speed
+        ):
+            self._bind()
+        args = self._steer_args
+        assert args is not None
+        if self.escapes and self._escape_until.max() > self.time_s:
+            escaping = (self._escape_until > self.time_s)[:, None]
+            args = args._replace(target=np.where(escaping, self._escape_target, tasks.target))
+        self._steer(*args, *self._steer_extra)
+        world.push_velocities()
+        world.step(self._dt)
+        world.sync_positions()
+        self.ticks += 1
+        self.time_s = self.ticks * self._dt
+        now = self.time_s
+
+        # Most ticks nothing happens: one compiled call checks arrivals and stuck robots. When
+        # something does, the checks run in the order events change the task state.
+        services_due = self._next_service <= now + 1e-9
+        schedule_due = bool(self._schedule) and self._schedule[0].at_s <= now + 1e-9
+        if services_due:
+            for i in np.flatnonzero(tasks.service_until <= now + 1e-9):
+                completion = tasks.finish_service(int(i), now)
+                if completion is None:
+                    self._new_leg(int(i))
+                else:
+                    out.completions.append(completion)
+        n_arrived, n_stalled = after_step(
+            self._pos,
+            tasks.target,
+            tasks.trigger,
+            tasks.moving,
+            self.world.in_space,
+            self._anchor,
+            self._anchor_time,
+            now,
+            STUCK_PATIENCE_S,
+            not schedule_due,
+            self._hits,
+            self._stalled,
+        )
+        for k in range(n_arrived):
+            tasks.arrive(int(self._hits[k]), now)
+        if schedule_due:
+            self._run_schedule(now, out)
+        if n_stalled < 0:
+            active = tasks.moving & self.world.in_space
+            n_stalled = stuck(
+                self._pos,
+                tasks.target,
+                active,
+                self._anchor,
+                self._anchor_time,
+                now,
+                STUCK_PATIENCE_S,
+                self._stalled,
+            )
+        for k in range(n_stalled):
+            self._escape(int(self._stalled[k]), now)
+        if services_due or n_arrived or schedule_due:
+            self._next_service = float(tasks.service_until.min())
+        if self._observers:
+            self._notify(out, marks)
+
+    def _notify(self, out: Advance, marks: tuple[int, int, int, int]) -> None:
+        now = self.time_s
+        events = [
+            EngineEvent(now, "completion", c.robot, c.circuit, c.task_time_s)
+            for c in out.completions[marks[0] :]
+        ]
+        events += [EngineEvent(now, "breakdown", r) for r in out.broken[marks[1] :]]
+        events += [EngineEvent(now, "repair", r) for r in out.repaired[marks[2] :]]
+        if self.escapes > marks[3]:
+            started = np.flatnonzero(self._escape_until == now + ESCAPE_TIME_S)
+            events += [EngineEvent(now, "escape", int(r)) for r in started]
+        for observer in self._observers:
+            observer.on_tick(self, events)
+
+    def _escape(self, robot: int, now: float) -> None:
+        """Start robot's escape: away from the robots around it, in a direction jittered by the
+        rng so that knotted robots do not all pick mirror-image moves."""
+        pos = self._pos
+        others = np.flatnonzero(self.world.in_space)
+        others = others[others != robot]
+        offsets = pos[robot] - pos[others]
+        dist = np.hypot(offsets[:, 0], offsets[:, 1])
+        near = dist < 1.5
+        away = (offsets[near] / np.maximum(dist[near], 1e-9)[:, None]).sum(axis=0)
+        angle = math.atan2(away[1], away[0]) if np.any(away) else 0.0
+        angle += self.rng.uniform(-math.pi / 2, math.pi / 2)
+        cfg = self.config
+        margin = cfg.robot_radius + 0.3
+        goal = pos[robot] + ESCAPE_DISTANCE_M * np.array([math.cos(angle), math.sin(angle)])
+        self._escape_target[robot] = np.clip(
+            goal, [margin, margin], [cfg.width - margin, cfg.height - margin]
+        )
+        self._escape_until[robot] = now + ESCAPE_TIME_S
+        self._anchor[robot] = pos[robot]
+        self._anchor_time[robot] = now + ESCAPE_TIME_S
+        self.escapes += 1
+
+    def _run_schedule(self, now: float, out: Advance) -> None:
+        while self._schedule and self._schedule[0].at_s <= now + 1e-9:
+            _, kind, robot, after = self._schedule.pop(0)
+            if kind == Scheduled.BREAK_DOWN:
+                if self.tasks.phase[robot] != Phase.BROKEN:
+                    self.break_down(robot)
+                    out.broken.append(robot)
+                    if after > 0:
+                        self._schedule.append(ScheduleEntry(now + after, Scheduled.REPAIR, robot))
+                        self._schedule.sort()
+            elif self.tasks.phase[robot] == Phase.BROKEN:
+                self.repair(robot)
+                out.repaired.append(robot)
+
+    # -- instrumentation -----------------------------------------------------------------------
+    def add_observer(self, observer: Observer) -> None:
+        """Call `observer.on_tick(self, events)` at the end of every tick from now on (until
+        `remove_observer`); it survives `reset`."""
+        if not callable(getattr(observer, "on_tick", None)):
+            raise ValueError(
+                f"observer {observer!r} is invalid; allowed: an object with on_tick(sim, events)"
+            )
+        self._observers.append(observer)
+
+    def remove_observer(self, observer: Observer) -> None:
+        self._observers.remove(observer)
+
+    # -- priorities ----------------------------------------------------------------------------
+    def set_circuit_values(self, values: np.ndarray) -> None:
+        """What a delivery on each circuit earns from now on (validated by the caller)."""
+        self.tasks.values = np.array(values, dtype=float)
+
+    # -- views (read-only: writing through them raises) -----------------------------------------
+    def positions(self) -> np.ndarray:
+        """Robot centres after the last physics step, shape (n, 2) (a copy)."""
+        return self._pos.copy()
+
+    @property
+    def positions_view(self) -> np.ndarray:
+        """Robot centres after the last physics step, shape (n, 2): a read-only view, valid until
+        the next tick (cheaper than `positions()` for per-tick observers)."""
+        return _read_only(self._pos)
+
+    @property
+    def headings(self) -> np.ndarray:
+        return _read_only(self.heading)
+
+    @property
+    def modes(self) -> np.ndarray:
+        """Each robot's `Mode` code (travel, queued, docking, service, idle)."""
+        return _read_only(self.tasks.mode)
+
+    @property
+    def phases(self) -> np.ndarray:
+        """Each robot's `Phase` code (deciding, to source, to sink, broken)."""
+        return _read_only(self.tasks.phase)
+
+    @property
+    def circuits(self) -> np.ndarray:
+        """The circuit each robot serves now (its last choice)."""
+        return _read_only(self.tasks.circuit)
+
+    @property
+    def circuit_values(self) -> np.ndarray:
+        return _read_only(self.tasks.values)
+
+    def broken(self) -> np.ndarray:
+        return self.tasks.phase == Phase.BROKEN
+
+    def snapshot(self) -> ArenaSnapshot:
+        """The arena now, as copies (for drawing, recording or comparing)."""
+        tasks = self.tasks
+        return ArenaSnapshot(
+            time_s=self.time_s,
+            positions=self._pos.copy(),
+            headings=self.heading.copy(),
+            targets=tasks.target.copy(),
+            circuits=tasks.circuit.copy(),
+            phases=tasks.phase.copy(),
+            moving=tasks.moving.copy(),
+            broken=self.broken(),
+            values=tasks.values.copy(),
+        )
+
+    def _check_reset(self) -> None:
+        if self._rng is None:
+            raise ValueError("the simulation was never reset; allowed: call reset(rng) first")

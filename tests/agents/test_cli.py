@@ -1,0 +1,165 @@
+"""The `tavc` command: help a newcomer can follow, a trial with a progress bar and a summary,
+recordings, the benchmark scripts behind `reproduce` / `bench`, and errors that say what is
+allowed."""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from agents.cli import benchmark_names, main
+from agents.experiments.runner import TrialResult
+
+TINY = ["--convergence-h", "0.02", "--hours", "0.05"]
+
+
+def run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(argv)
+        except SystemExit as stop:
+            code = int(stop.code or 0)
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_console_script_is_installed_and_help_lists_every_command() -> None:
+    scripts = importlib.metadata.entry_points(group="console_scripts")
+    assert any(e.name == "tavc" and e.value == "agents.cli:main" for e in scripts)
+    done = subprocess.run(
+        [sys.executable, "-m", "agents.cli", "--help"], capture_output=True, text=True, check=True
+    )
+    for command in ("trial", "record", "reproduce", "bench"):
+        assert command in done.stdout
+
+
+@pytest.mark.parametrize("command", ["trial", "record", "reproduce", "bench"])
+def test_every_command_has_help(command: str) -> None:
+    code, out, _ = run([command, "--help"])
+    assert code == 0 and f"usage: tavc {command}" in out
+
+
+def test_trial_prints_progress_and_a_summary_and_saves(tmp_path: Path) -> None:
+    path = tmp_path / "trial.json"
+    code, out, _ = run(["trial", "--allocator", "random", *TINY, "--out", str(path)])
+    assert code == 0
+    assert "sim s" in out  # the progress bar
+    assert "delivered value per robot per 10 s" in out
+    assert "fast robots (3)" in out and "slow robots (3)" in out
+    result = TrialResult.load(path)
+    assert result.end_s == pytest.approx(0.07 * 3600)
+    # the same seed through the CLI and the runner: the same trial
+    code, _, _ = run(["trial", "--allocator", "random", *TINY, "--out", str(tmp_path / "b.json")])
+    again = TrialResult.load(tmp_path / "b.json")
+    assert again.changes == result.changes and again.delivery_time_s == result.delivery_time_s
+
+
+def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) -> None:
+    path = tmp_path / "t.json"
+    argv = ["trial", "--allocator", "softmax_tavc", "--param", "temperature=0.02"]
+    argv += ["--param", "init=paper", "--set", "source_service_s=10", *TINY, "--out", str(path)]
+    assert run(argv)[0] == 0
+    assert TrialResult.load(path).env_kwargs["source_service_s"] == 10
+    # greedy needs the model: the committed one of the preset is found
+    code, out, _ = run(["trial", "--allocator", "greedy", *TINY])
+    assert code == 0 and "greedy on dahl2004" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["trial", "--param", "temperature"],
+            "--param 'temperature' is invalid; allowed: KEY=VALUE",
+        ),
+        (["trial", "--hours", "0"], "--hours = 0.0; allowed: a number > 0"),
+        (["trial", "--convergence-h", "-1"], "--convergence-h = -1.0; allowed: a number >= 0"),
+        (["trial", "--allocator", "nope"], "invalid choice: 'nope'"),
+        (["trial", "--param", "bogus=1", *TINY], "parameters ['bogus'] of allocator"),
+        (["trial", "--set", "wings=2", *TINY], "unknown configuration key(s) ['wings']"),
+        (
+            ["trial", "--allocator", "greedy", "--preset", "dahl2004_homogeneous", *TINY],
+            "allocator 'greedy' needs the TAVC model",
+        ),
+        (["record", "--out", "arena.mp4"], "allowed: a .gif (animation) or .png"),
+        (["trial", "--allocator", "static", "--model", "/nonexistent.json"], "does not exist"),
+        (["trial", "--allocator", "static", "--model", __file__, *TINY], "could not be read"),
+        (["bench", "nope"], "benchmark 'nope' is unknown; allowed: ["),
+    ],
+)
+def test_bad_arguments_say_what_is_allowed(argv: list[str], message: str) -> None:
+    code, _, err = run(argv)
+    assert code == 2 and message in err
+
+
+def test_record_writes_an_animation_and_a_frame(tmp_path: Path) -> None:
+    pytest.importorskip("pygame", reason="recording needs the render extra")
+    image = pytest.importorskip("PIL.Image", reason="recording needs the render extra")
+    gif = tmp_path / "a.gif"
+    argv = ["record", "--allocator", "random", "--minutes", "1", "--frame-s", "5"]
+    code, out, _ = run([*argv, "--out", str(gif)])
+    assert code == 0 and "12 frames" in out
+    with image.open(gif) as im:
+        assert im.n_frames == 12 and im.size[0] > 500
+    png = tmp_path / "a.png"
+    assert run([*argv, "--out", str(png)])[0] == 0
+    with image.open(png) as im:
+        assert im.format == "PNG"
+
+
+def test_reproduce_and_bench_run_the_scripts(tmp_path: Path) -> None:
+    assert {"table1", "allocators", "throughput", "vacancy_chain"} <= set(benchmark_names())
+    out_dir = tmp_path / "t1"
+    argv = ["reproduce", "--", "--quick", "--workers", "1", "--out", str(out_dir)]
+    code, out, _ = run(argv)
+    assert code == 0 and (out_dir / "table1.md").exists() and "wrote" in out
+    summary = json.loads((out_dir / "table1.json").read_text())
+    assert summary["metadata"]["settings"]["trials"] == 2
+
+
+def test_plots_from_saved_results(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="plots need the plot extra")
+    softmax, rand = tmp_path / "softmax.json", tmp_path / "random.json"
+    assert run(["trial", "--allocator", "softmax_tavc", *TINY, "--out", str(softmax)])[0] == 0
+    assert run(["trial", "--allocator", "random", *TINY, "--out", str(rand)])[0] == 0
+    for argv in (
+        ["plot", "timeline", str(softmax), str(rand), "--from-h", "0.01"],
+        ["plot", "q", str(softmax)],
+        ["plot", "interference"],  # the committed benchmarks/results/interference.csv
+    ):
+        out = tmp_path / f"{argv[1]}.png"
+        code, printed, err = run([*argv, "--out", str(out)])
+        assert code == 0, err
+        assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "wrote" in printed
+    code, _, err = run(["plot", "q", str(rand), "--out", str(tmp_path / "x.png")])
+    assert code == 2 and "has no Q snapshots" in err
+    code, _, err = run(["plot", "timeline", str(tmp_path / "missing.json")])
+    assert code == 2 and "missing.json does not exist" in err
+    code, _, err = run(
+        ["plot", "timeline", str(rand), "--from-h", "5", "--out", str(tmp_path / "y.png")]
+    )
+    assert code == 2 and "is empty" in err
+
+
+def test_table1_figures_are_redrawn_from_saved_trials(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="plots need the plot extra")
+    out_dir = tmp_path / "t1"
+    argv = ["reproduce", "--", "--quick", "--workers", "1", "--out", str(out_dir)]
+    argv += ["--conditions", "softmax,random", "--set", "source_service_s=12"]
+    assert run(argv)[0] == 0
+    figure = out_dir / "figure2.png"
+    figure.unlink()
+    code, out, err = run(["plot", "table1", str(out_dir)])
+    assert code == 0, err
+    assert figure.exists() and "wrote" in out
+    saved = json.loads((out_dir / "table1.json").read_text())["metadata"]
+    assert saved["trials_run"] == 0 and saved["trials_resumed"] == 4  # nothing rerun
+    code, _, err = run(["plot", "table1", str(tmp_path)])
+    assert code == 2 and "table1.json does not exist" in err

@@ -1,0 +1,153 @@
+"""The fast paths of the engine agree exactly with the slow ones they replace.
+
+* `World` reads positions and writes velocities through pymunk's batch API: the values must be
+  those of per-body attribute access, also after robots leave and re-enter the space (which
+  reorders pymunk's bodies).
+* `navigation.steer_all_grid` finds each robot's neighbours on a grid: the commands must be
+  exactly those of `steer_all`, which looks at every pair.
+* `navigation.after_step` fuses the arrival and stuck checks: it must give the same robots, and
+  leave the same anchors, as `arrivals` then `stuck`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import tavc_env
+from tavc_env.engine.navigation import (
+    STUCK_PATIENCE_S,
+    after_step,
+    arrivals,
+    neighbour_cell_m,
+    steer_all,
+    steer_all_grid,
+    stuck,
+)
+from tavc_env.engine.world import World
+
+
+def per_body_positions(world: World) -> np.ndarray:
+    return np.array([tuple(b.position) for b in world.bodies])
+
+
+@pytest.mark.parametrize("preset", ["dahl2004", "three_circuits_three_classes"])
+def test_batched_positions_and_velocities_match_per_body_access(preset: str) -> None:
+    config = tavc_env.make_config(preset)
+    world = World(config)
+    rng = np.random.default_rng(5)
+    n = world.n
+    lo, hi = 1.0, np.array([config.width, config.height]) - 1.0
+    world.place(np.column_stack([np.linspace(1.0, config.width - 1.0, n), np.full(n, 4.0)]))
+    removed: list[int] = []
+    for step in range(300):
+        if step % 37 == 5:  # robots leave and come back, in an order that reshuffles pymunk's
+            i = int(rng.integers(n))
+            if world.in_space[i] and len(removed) < n - 1:
+                world.remove_robot(i)
+                removed.append(i)
+            elif removed:
+                world.restore_robot(removed.pop(0), rng)
+        velocities = rng.uniform(-0.3, 0.3, size=(n, 2))
+        world.set_velocities(velocities)
+        for i in np.flatnonzero(world.in_space):
+            assert tuple(world.bodies[i].velocity) == tuple(velocities[i])
+        world.step(config.dt)
+        assert np.array_equal(world.positions(), per_body_positions(world))
+    assert np.all(per_body_positions(world) > lo - 1.0)
+    assert np.all(per_body_positions(world) < hi + 1.0)
+
+
+def test_fused_after_step_equals_arrivals_then_stuck() -> None:
+    rng = np.random.default_rng(11)
+    for trial in range(200):
+        n = int(rng.integers(1, 12))
+        pos = rng.uniform(0, 5, size=(n, 2))
+        target = pos + rng.normal(scale=rng.choice([0.05, 0.5, 2.0]), size=(n, 2))
+        trigger = np.where(rng.random(n) < 0.3, -1.0, rng.uniform(0.05, 1.5, size=n))
+        moving = rng.random(n) < 0.7
+        present = rng.random(n) < 0.9
+        anchor = pos + rng.normal(scale=0.1, size=(n, 2))
+        anchor_time = rng.uniform(0, 100, size=n)
+        now = 100.0
+        stuck_too = bool(rng.random() < 0.8)
+
+        a_anchor, a_time = anchor.copy(), anchor_time.copy()
+        arrived, stalled = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        k, m = after_step(
+            pos,
+            target,
+            trigger,
+            moving,
+            present,
+            a_anchor,
+            a_time,
+            now,
+            STUCK_PATIENCE_S,
+            stuck_too,
+            arrived,
+            stalled,
+        )
+
+        b_anchor, b_time = anchor.copy(), anchor_time.copy()
+        hits = np.zeros(n, np.int64)
+        k_ref = arrivals(pos, target, trigger, hits)
+        assert k == k_ref and list(arrived[:k]) == list(hits[:k_ref]), trial
+        if k_ref == 0 and stuck_too:
+            out = np.zeros(n, np.int64)
+            m_ref = stuck(
+                pos, target, moving & present, b_anchor, b_time, now, STUCK_PATIENCE_S, out
+            )
+            assert m == m_ref and list(stalled[:m]) == list(out[:m_ref]), trial
+        else:
+            assert m == -1, trial  # the caller runs the stuck check after handling arrivals
+        assert np.array_equal(a_anchor, b_anchor) and np.array_equal(a_time, b_time), trial
+
+
+def test_grid_neighbour_search_gives_exactly_the_all_pairs_commands() -> None:
+    rng = np.random.default_rng(3)
+    radius, sensing, turn, w, h = 0.22, 1.0, 0.175, 30.0, 12.0
+    cell = neighbour_cell_m(radius, sensing)
+    for trial in range(100):
+        n = int(rng.integers(2, 60))
+        # crowded clusters and scattered robots, some just outside the walls' line
+        pos = rng.uniform(-0.1, 1.0, size=(n, 2)) * np.array([w, h])
+        if trial % 2:
+            pos[: n // 2] = rng.normal([5.0, 5.0], 0.6, size=(n // 2, 2))
+        heading = rng.uniform(-np.pi, np.pi, n)
+        target = pos + rng.normal(scale=2.0, size=(n, 2))
+        moving = rng.random(n) < 0.8
+        speed = rng.uniform(0.2, 0.3, n)
+        present = rng.random(n) < 0.9
+        a_v, a_h = np.zeros((n, 2)), np.zeros(n)
+        b_v, b_h = np.zeros((n, 2)), np.zeros(n)
+        common = (pos, heading, target, moving, speed, present, radius, sensing, turn, w, h)
+        steer_all(*common, a_v, a_h)
+        steer_all_grid(*common, b_v, b_h, cell)
+        assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), trial
+
+
+def test_simulation_with_and_without_the_grid_is_identical(monkeypatch: pytest.MonkeyPatch) -> None:
+    import tavc_env.engine.simulation as simulation
+
+    config = tavc_env.scaled_config(8)  # 24 robots: above GRID_MIN_ROBOTS
+
+    def run() -> np.ndarray:
+        sim = simulation.Simulation(config)
+        sim.reset(np.random.default_rng(2))
+        rng = np.random.default_rng(9)
+        for i in range(config.n_robots):
+            sim.choose(i, int(rng.integers(config.n_circuits)))
+        trace = []
+        for _ in range(40):
+            out = sim.advance(30.0, stop_on_decision=False)
+            for c in out.completions:
+                sim.choose(c.robot, int(rng.integers(config.n_circuits)))
+            trace.append(sim.positions())
+        return np.array(trace)
+
+    assert simulation.Simulation(config)._grid_cell > 0
+    with_grid = run()
+    monkeypatch.setattr(simulation, "GRID_MIN_ROBOTS", 10**9)
+    assert simulation.Simulation(config)._grid_cell == 0
+    assert np.array_equal(with_grid, run())
