@@ -65,6 +65,16 @@ def arena_overrides(items: Sequence[str]) -> dict[str, Any]:
     return parse_key_values(items, "--set", "source_service_s=15")
 
 
+@dataclass
+class Outcome:
+    """What running a study left: the folder it wrote, the files, and the text to print (the
+    results table a person reads first)."""
+
+    out_dir: Path
+    written: list[Path]
+    text: str
+
+
 S = TypeVar("S")
 
 
