@@ -11,8 +11,21 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-STUDIES: dict[str, str] = {}
-"""Study name -> module (filled in as studies move into the package)."""
+STUDIES: dict[str, str] = {
+    name: f"agents.studies.{name}"
+    for name in (
+        "table1",
+        "differentiation",
+        "interference",
+        "dt_fidelity",
+        "long_run",
+        "throughput",
+        "tavc_model",
+        "allocators",
+        "vacancy_chain",
+    )
+}
+"""Study name -> module."""
 
 
 def load(name: str) -> ModuleType:
