@@ -1,0 +1,61 @@
+"""Provenance: what a run records, and that a sweep computing nothing returns the provenance of
+the run that computed its results."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from agents.experiments.provenance import (
+    load_provenance,
+    run_metadata,
+    run_recorded,
+    save_provenance,
+)
+from agents.experiments.sweep import TRIALS, TrialSpec
+
+
+def test_run_metadata_records_machine_versions_and_command() -> None:
+    meta = run_metadata(settings={"a": 1})
+    assert meta["machine"]["cores"] >= 1
+    assert meta["versions"]["numpy"] and meta["versions"]["tavc_env"]
+    assert meta["settings"] == {"a": 1} and "command" in meta and "git" in meta
+
+
+def test_provenance_round_trips(tmp_path: Path) -> None:
+    assert load_provenance(tmp_path) is None
+    save_provenance(tmp_path, {"x": [1, 2]})
+    assert load_provenance(tmp_path) == {"x": [1, 2]}
+    assert [p.name for p in tmp_path.iterdir()] == ["provenance.json"]
+
+
+def test_a_sweep_that_computes_nothing_keeps_the_provenance_of_the_one_that_did(
+    tmp_path: Path,
+) -> None:
+    specs = [
+        TrialSpec(
+            key=f"r{seed}",
+            allocator="random",
+            seed=seed,
+            convergence_s=0.0,
+            measured_s=60.0,
+            tags={"seed": seed},
+        )
+        for seed in (0, 1)
+    ]
+    run = {"workers": 1, "wall_of": lambda r: r.wall_s, "progress_bar": False}
+    first, meta = run_recorded(specs, TRIALS, tmp_path / "t", tmp_path, {"n": 2}, **run)
+    assert meta["trials_run"] == 2 and load_provenance(tmp_path) == meta | {
+        "wall_time_s": meta["wall_time_s"]
+    }
+    again, meta2 = run_recorded(specs, TRIALS, tmp_path / "t", tmp_path, {"n": 2}, **run)
+    assert meta2 == load_provenance(tmp_path)
+    assert meta2["timestamp_utc"] == meta["timestamp_utc"] and meta2["trials_run"] == 2
+    assert again["r1"].to_dict() == first["r1"].to_dict()
+    # one more trial: this run computed something, so its own provenance replaces the old one
+    more = [
+        *specs,
+        TrialSpec(key="r2", allocator="random", seed=2, convergence_s=0.0, measured_s=60.0),
+    ]
+    _, meta3 = run_recorded(more, TRIALS, tmp_path / "t", tmp_path, {"n": 3}, **run)
+    assert meta3["trials_run"] == 1 and meta3["trials_resumed"] == 2
+    assert load_provenance(tmp_path) == meta3

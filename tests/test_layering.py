@@ -1,0 +1,171 @@
+"""The house's layering: imports only go down, and nothing imports in a circle.
+
+Every import of the package's own modules is read from the source (also those inside functions
+and under `TYPE_CHECKING`), so a function-level import cannot hide an upward arrow. Layers, lowest
+first; a module may import from its own layer or any layer below, and the import graph of the
+whole tree must have no cycle (checked with the standard library's topological sorter).
+"""
+
+from __future__ import annotations
+
+import ast
+import graphlib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# (layer, module prefix): the longest matching prefix decides a module's layer.
+LAYERS: list[tuple[int, str]] = [
+    (0, "tavc_env._validation"),
+    (0, "tavc_env.layout"),
+    (0, "tavc_env.config"),
+    (0, "tavc_env.metrics"),
+    (1, "tavc_env.engine"),
+    (2, "tavc_env.render"),
+    (3, "tavc_env.env"),
+    (3, "tavc_env.registration"),
+    (3, "tavc_env"),  # the package's __init__: the public API, re-exporting the env
+    (4, "agents.policy"),
+    (4, "agents.driver"),
+    (4, "agents.model"),
+    (5, "agents.learners"),
+    (5, "agents.allocators"),
+    (6, "agents.experiments"),
+    (6, "agents.envs"),
+    (7, "agents.analysis"),
+    (8, "agents.studies"),
+    (9, "agents.cli"),
+    (9, "agents"),  # the package's __init__ (a docstring)
+    (10, "benchmarks"),
+]
+ENGINE_ONLY = ("tavc_env.engine",)  # physics and task rules: must not know gymnasium or PettingZoo
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def source_files() -> dict[str, Path]:
+    files = [*ROOT.glob("tavc_env/**/*.py"), *ROOT.glob("agents/**/*.py")]
+    files += ROOT.glob("benchmarks/*.py")
+    return {module_name(p): p for p in sorted(files)}
+
+
+MODULES = source_files()
+
+
+def imported_modules(path: Path, name: str) -> set[str]:
+    """Every module `path` imports, at any depth of its code, resolved to full names."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                stem = ".".join([*base, node.module] if node.module else base)
+            else:
+                stem = node.module or ""
+            found.add(stem)
+            # `from package import module` imports the module itself
+            found.update(f"{stem}.{alias.name}" for alias in node.names)
+    return found
+
+
+def own(target: str) -> str | None:
+    """The project module `target` refers to (itself or the package it names), or None."""
+    while target:
+        if target in MODULES:
+            return target
+        target = target.rpartition(".")[0]
+    return None
+
+
+def layer_of(name: str) -> int:
+    matches = [
+        (len(prefix), layer)
+        for layer, prefix in LAYERS
+        if name == prefix or name.startswith(prefix + ".")
+    ]
+    if not matches:
+        raise AssertionError(f"module {name} has no layer; add it to LAYERS in {__file__}")
+    return max(matches)[1]
+
+
+def graph() -> dict[str, set[str]]:
+    edges: dict[str, set[str]] = {}
+    for name, path in MODULES.items():
+        targets = {own(t) for t in imported_modules(path, name)}
+        edges[name] = {t for t in targets if t is not None and t != name}
+    return edges
+
+
+EDGES = graph()
+
+
+def test_every_module_has_a_layer() -> None:
+    for name in MODULES:
+        layer_of(name)
+
+
+def test_imports_only_go_down() -> None:
+    upward = [
+        f"{name} (layer {layer_of(name)}) imports {target} (layer {layer_of(target)})"
+        for name, targets in EDGES.items()
+        for target in sorted(targets)
+        if layer_of(target) > layer_of(name)
+    ]
+    assert not upward, "imports that run up:\n" + "\n".join(upward)
+
+
+def test_no_import_cycles() -> None:
+    # A package's __init__ importing its own submodules is the usual re-export, not a cycle of
+    # meaning; it is left out so that real cycles between modules show.
+    edges = {
+        name: {t for t in targets if not name or not t.startswith(name + ".")}
+        for name, targets in EDGES.items()
+    }
+    try:
+        tuple(graphlib.TopologicalSorter(edges).static_order())
+    except graphlib.CycleError as error:
+        pytest.fail(f"import cycle: {' -> '.join(error.args[1])}")
+
+
+def test_nothing_imports_the_benchmark_scripts() -> None:
+    importers = [
+        f"{name} imports {target}"
+        for name, targets in EDGES.items()
+        for target in targets
+        if target.startswith("benchmarks")
+    ]
+    assert not importers, "\n".join(importers)
+    for name, path in MODULES.items():
+        if name.startswith("benchmarks"):
+            text = path.read_text(encoding="utf-8")
+            for trick in ("sys.path", "runpy", "from _common", "import _common"):
+                assert trick not in text, f"{path} uses {trick}"
+
+
+def test_the_engine_knows_nothing_of_rl_libraries() -> None:
+    for name, path in MODULES.items():
+        if name.startswith(ENGINE_ONLY):
+            imported = imported_modules(path, name)
+            rl = sorted(m for m in imported if m.split(".")[0] in {"gymnasium", "pettingzoo"})
+            assert not rl, f"{name} imports {rl}"
+
+
+def test_the_layering_test_sees_function_level_imports(tmp_path: Path) -> None:
+    """The checker itself: an import inside a function is found (a test that could not fail
+    would prove nothing)."""
+    path = tmp_path / "probe.py"
+    path.write_text("def f():\n    from agents.studies import common\n    import tavc_env.env\n")
+    found = imported_modules(path, "probe")
+    assert {"agents.studies", "agents.studies.common", "tavc_env.env"} <= found
