@@ -322,15 +322,8 @@ def _run_on_ray(
         if address:
             ray.init(address=address, log_to_driver=False)
         else:
-            # Local workers see the driver's import path, so job functions defined in scripts
-            # (e.g. benchmarks/interference.py) import there as they do here.
-            path = os.pathsep.join(p for p in sys.path if p)
-            ray.init(
-                num_cpus=workers,
-                include_dashboard=False,
-                log_to_driver=False,
-                runtime_env={"env_vars": {"PYTHONPATH": path}},
-            )
+            # Job functions live in the installed package, so workers import them as we do.
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
     task = ray.remote(num_cpus=1)(run)
     pending = {task.remote(job): job for job in todo}
     try:
