@@ -81,9 +81,10 @@ class TavcLearner:
         self.non_greedy_choices = 0
 
     def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        rng = generator(self._rng, self)
         s = state_of(observation)
         row = self.q[s]
-        action = sample(self.selection.probabilities(row, action_mask), generator(self._rng, self))
+        action = sample(self.selection.probabilities(row, action_mask), rng)
         allowed = allowed_actions(action_mask)
         self.choices += 1
         if row[action] < row[allowed].max():
