@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from agents.experiments.files import atomic_path, check_writable, write_text
+
 
 def metadata_markdown(meta: Mapping[str, Any]) -> str:
     """The provenance as a Markdown block (goes at the top of every report)."""
@@ -75,7 +77,7 @@ def write_csv(
             for k in row:
                 seen.setdefault(k, None)
         fields = list(seen)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(fields), extrasaction="ignore")
         writer.writeheader()
         for row in rows:
@@ -87,7 +89,7 @@ class CsvAppender:
 
     def __init__(self, path: Path, fields: Sequence[str]) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        self.path = path
+        self.path = check_writable(path)
         self.fields = list(fields)
         self._fh = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
         self._writer = csv.DictWriter(self._fh, fieldnames=self.fields, extrasaction="ignore")
@@ -122,11 +124,9 @@ def write_results(
     }
     write_csv(paths["csv"], rows, fields)
     md = f"# {title}\n\n{metadata_markdown(meta)}\n\n{markdown_body.rstrip()}\n"
-    paths["md"].write_text(md, encoding="utf-8")
+    write_text(paths["md"], md)
     payload = {"metadata": dict(meta), "summary": dict(summary or {}), "csv": paths["csv"].name}
-    paths["json"].write_text(
-        json.dumps(jsonable(payload), indent=2, allow_nan=False) + "\n", encoding="utf-8"
-    )
+    write_text(paths["json"], json.dumps(jsonable(payload), indent=2, allow_nan=False) + "\n")
     return paths
 
 
@@ -152,7 +152,8 @@ class Report:
         written = [paths["md"], paths["csv"], paths["json"]]
         if self.figures and have_matplotlib():
             for file_name, draw in self.figures:
-                draw(out_dir / file_name)
+                with atomic_path(out_dir / file_name) as tmp:
+                    draw(tmp)
                 written.append(out_dir / file_name)
         return written
 

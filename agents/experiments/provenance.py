@@ -21,6 +21,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, TypeVar
 
+from agents.experiments.files import write_text
 from agents.experiments.sweep import JobKind, run_jobs
 
 PROVENANCE_FILE = "provenance.json"
@@ -109,13 +110,10 @@ def load_provenance(folder: str | Path) -> dict[str, Any] | None:
 
 
 def save_provenance(folder: str | Path, meta: Mapping[str, Any]) -> Path:
-    """Write `meta` as `folder`/provenance.json (through a temporary file and a rename)."""
+    """Write `meta` as `folder`/provenance.json (safely: see `agents.experiments.files`)."""
     path = Path(folder) / PROVENANCE_FILE
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
-    tmp.replace(path)
-    return path
+    return write_text(path, json.dumps(meta, indent=2) + "\n")
 
 
 J = TypeVar("J")

@@ -12,7 +12,6 @@ policy, so adding a robot does not change the others' random draws.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -23,6 +22,7 @@ import numpy as np
 
 import tavc_env
 from agents.driver import PolicyDriver
+from agents.experiments.files import CorruptFileError, read_record, write_record
 from agents.policy import Policy, Team
 from tavc_env._validation import is_integer, is_number, require
 
@@ -112,15 +112,18 @@ class TrialResult:
         return cls(**d)
 
     def save(self, path: str | Path) -> None:
-        """Write atomically (a partial file never replaces a finished one)."""
-        path = Path(path)
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        tmp.write_text(json.dumps(self.to_dict()))
-        tmp.replace(path)
+        """Write atomically with a schema version and a checksum (a partial file never replaces
+        a finished one; see `agents.experiments.files`)."""
+        write_record(path, self.to_dict())
 
     @classmethod
     def load(cls, path: str | Path) -> TrialResult:
-        return cls.from_dict(json.loads(Path(path).read_text()))
+        """A saved trial, checked: a corrupt or edited file raises `CorruptFileError` naming it."""
+        data = read_record(path)
+        try:
+            return cls.from_dict(data)
+        except TypeError as error:
+            raise CorruptFileError(f"{path} is not a saved trial ({error})") from None
 
 
 def _jsonable(value: Any) -> Any:

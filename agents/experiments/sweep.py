@@ -1,9 +1,12 @@
 """The sweep runner: many independent trials in parallel, saved as they finish, resumable.
 
 A sweep is a list of `TrialSpec`s (plain data: allocator name and parameters, env arguments,
-seed, periods). Each finished trial is written at once to `<out_dir>/<key>.json` (atomically), so a
-killed sweep loses at most the trials that were running; rerunning the same sweep loads the
-finished ones and runs only the rest.
+seed, periods). Each finished trial is written to `<out_dir>/<key>.json` (atomically, with a
+checksum) by the process that ran it, before its result travels anywhere, so nothing that happens
+to the sweep afterwards can lose it: a worker's error (the other trials go on; the error names the
+trial, its seed and how to rerun just it), Ctrl-C, SIGTERM, or SIGKILL of the driver (the local
+pool's workers die with it). Rerunning the same sweep loads the finished trials and runs only the
+rest; a stored trial that is corrupt or was edited is reported and run again.
 
 Backends: `"local"` (default) runs trials in a process pool over this machine's cores and needs
 nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
@@ -13,20 +16,25 @@ driver writes each result the moment it arrives, so the two backends resume each
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import hashlib
 import inspect
 import json
 import os
 import re
+import signal
 import sys
-from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import traceback
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 from tqdm import tqdm
 
+from agents.experiments.files import CorruptFileError, read_record, write_record
 from agents.experiments.registry import make_allocator
 from agents.experiments.runner import Event, TrialResult, run_trial
 
@@ -141,6 +149,8 @@ class JobKind(Generic[J, R]):
     same: Callable[[dict[str, Any] | None, dict[str, Any]], bool] = field(
         default=lambda stored, wanted: stored == wanted
     )
+    check: Callable[[J], None] = field(default=lambda job: None)
+    """Raise a ValueError for a job that cannot run (called for every job before any runs)."""
 
 
 def run_jobs(
@@ -193,7 +203,12 @@ def run_jobs(
         if not path.exists():
             todo.append(job)
             continue
-        stored, record = kind.load(path)
+        try:
+            stored, record = kind.load(path)
+        except CorruptFileError as error:
+            print(f"{error}; running {kind.unit} {key!r} again", file=sys.stderr)
+            todo.append(job)
+            continue
         if not kind.same(record, kind.record(job)):
             raise ValueError(
                 f"{path} holds {kind.unit} {key!r} run with different settings "
@@ -204,25 +219,168 @@ def run_jobs(
         if on_done is not None:
             on_done(job, stored, True)
 
-    def finish(job: J, result: R) -> None:
+    records = {}
+    for job in todo:  # bad input is refused before anything runs
+        kind.check(job)
+        records[kind.key(job)] = kind.record(job)
+    failures: list[Failure] = []
+
+    def finish(job: J, result: R, saved: bool) -> None:
         key = kind.key(job)
-        kind.save(result, kind.record(job), result_path(out, key))
+        if not saved:
+            kind.save(result, kind.record(job), result_path(out, key))
         results[key] = result
         if on_done is not None:
             on_done(job, result, False)
 
-    if backend == "ray":
-        _run_on_ray(todo, kind.run, n_workers if workers is not None else None, finish)
-        return results
-    if n_workers == 1 or len(todo) <= 1:
-        for job in todo:
-            finish(job, kind.run(job))
-        return results
-    with ProcessPoolExecutor(max_workers=min(n_workers, len(todo))) as pool:
-        futures = {pool.submit(kind.run, job): job for job in todo}
-        for future in as_completed(futures):
-            finish(futures[future], future.result())
+    def fail(job: J, error: BaseException) -> None:
+        failures.append(_failure(kind, job, error, out))
+
+    with _stop_on_sigterm():
+        if backend == "ray":
+            _run_on_ray(todo, kind.run, n_workers if workers is not None else None, finish, fail)
+        elif n_workers == 1 or len(todo) <= 1:
+            for job in todo:
+                task = _Task(
+                    kind.run,
+                    kind.save,
+                    job,
+                    records[kind.key(job)],
+                    result_path(out, kind.key(job)),
+                )
+                try:
+                    result = task()
+                except Exception as error:
+                    fail(job, error)
+                else:
+                    finish(job, result, True)
+        else:
+            _run_in_pool(todo, kind, records, out, min(n_workers, len(todo)), finish, fail)
+    if failures:
+        raise SweepError(failures, kind.unit)
     return results
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A job that raised: its key, its record (settings, seed) and the error."""
+
+    key: str
+    record: dict[str, Any]
+    error: str
+    record_path: Path
+
+
+class SweepError(RuntimeError):
+    """Some jobs of a sweep raised; every other job finished and was saved."""
+
+    def __init__(self, failures: Sequence[Failure], unit: str) -> None:
+        self.failures = list(failures)
+        first = self.failures[0]
+        lines = [
+            f"{len(self.failures)} {unit}(s) failed; every other {unit} finished and is saved:"
+        ]
+        for f in self.failures:
+            seed = f.record.get("seed", "-")
+            lines.append(f"  {f.key} (seed {seed}): {f.error.strip().splitlines()[-1]}")
+        lines.append(
+            f"To rerun just one: python -m agents.experiments.sweep {first.record_path} "
+            "(or rerun the whole command: finished ones are resumed, not recomputed)."
+        )
+        lines.append(f"First traceback:\n{first.error}")
+        super().__init__("\n".join(lines))
+
+
+def _failure(kind: JobKind[J, R], job: J, error: BaseException, out: Path) -> Failure:
+    key = kind.key(job)
+    text = "".join(traceback.format_exception(error))
+    record = kind.record(job)
+    path = out / f"{key}.failed.json"
+    with contextlib.suppress(OSError, ValueError):
+        from agents.experiments.files import write_text
+
+        write_text(path, json.dumps({"unit": kind.unit, "record": record, "error": text}))
+    return Failure(key, record, text, path)
+
+
+@dataclass(frozen=True)
+class _Task(Generic[J, R]):
+    """One job as a worker runs it: run, then save the result before returning it."""
+
+    run: Callable[[J], R]
+    save: Callable[[R, dict[str, Any], Path], None]
+    job: J
+    record: dict[str, Any]
+    path: Path
+
+    def __call__(self) -> R:
+        result = self.run(self.job)
+        self.save(result, self.record, self.path)
+        return result
+
+
+def _die_with_parent(parent: int) -> None:
+    """Pool worker initialiser: ask Linux to kill this worker when its parent dies (SIGKILL of the
+    driver leaves no orphan burning a core); elsewhere a no-op."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent died before the request took effect
+        os._exit(1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's to handle
+
+
+def _run_in_pool(
+    todo: Sequence[J],
+    kind: JobKind[J, R],
+    records: Mapping[str, dict[str, Any]],
+    out: Path,
+    n_workers: int,
+    finish: Callable[[J, R, bool], None],
+    fail: Callable[[J, BaseException], None],
+) -> None:
+    pool = ProcessPoolExecutor(
+        max_workers=n_workers, initializer=_die_with_parent, initargs=(os.getpid(),)
+    )
+    futures: dict[Future[R], J] = {}
+    try:
+        for job in todo:
+            task = _Task(
+                kind.run, kind.save, job, records[kind.key(job)], result_path(out, kind.key(job))
+            )
+            futures[pool.submit(task)] = job
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                error = future.exception()
+                if error is not None:
+                    fail(futures[future], error)
+                else:
+                    finish(futures[future], future.result(), True)
+    finally:
+        # On Ctrl-C or SIGTERM: queued jobs are dropped, running ones stop with their workers;
+        # every finished one was saved by its worker before it reported back.
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _stop_on_sigterm() -> Iterator[None]:
+    """Within the block, SIGTERM stops the sweep as Ctrl-C does (with KeyboardInterrupt)."""
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _save_trial(result: TrialResult, record: dict[str, Any], path: Path) -> None:
@@ -233,6 +391,18 @@ def _save_trial(result: TrialResult, record: dict[str, Any], path: Path) -> None
 def _load_trial(path: Path) -> tuple[TrialResult, dict[str, Any] | None]:
     result = TrialResult.load(path)
     return result, result.spec
+
+
+def _save_json(result: dict[str, Any], record: dict[str, Any], path: Path) -> None:
+    write_record(path, {"record": record, "result": result})
+
+
+def _load_json(path: Path) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    data = read_record(path)
+    try:
+        return data["result"], data.get("record")
+    except KeyError:
+        raise CorruptFileError(f"{path} has no 'result'; it is not a saved job") from None
 
 
 def _same_trial(stored: dict[str, Any] | None, wanted: dict[str, Any]) -> bool:
@@ -248,7 +418,12 @@ def _same_trial(stored: dict[str, Any] | None, wanted: dict[str, Any]) -> bool:
     return stored == wanted
 
 
+def _check_spec(spec: TrialSpec) -> None:
+    make_allocator(spec.allocator, **spec.allocator_kwargs)  # names a bad allocator or parameter
+
+
 TRIALS: JobKind[TrialSpec, TrialResult] = JobKind(
+    check=_check_spec,
     run=run_spec,
     key=lambda spec: spec.key,
     record=spec_record,
@@ -288,25 +463,19 @@ def json_jobs(
         data: dict[str, Any] = json.loads(json.dumps(asdict(job), default=repr))  # type: ignore[call-overload]
         return data
 
-    def save(result: dict[str, Any], rec: dict[str, Any], path: Path) -> None:
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        tmp.write_text(json.dumps({"record": rec, "result": result}))
-        tmp.replace(path)
-
-    def load(path: Path) -> tuple[dict[str, Any], dict[str, Any] | None]:
-        data = json.loads(path.read_text())
-        return data["result"], data.get("record")
-
-    return JobKind(run=run, key=key, record=record, save=save, load=load, unit=unit)
+    return JobKind(run=run, key=key, record=record, save=_save_json, load=_load_json, unit=unit)
 
 
 def _run_on_ray(
     todo: Sequence[J],
     run: Callable[[J], R],
     workers: int | None,
-    finish: Callable[[J, R], None],
+    finish: Callable[[J, R, bool], None],
+    fail: Callable[[J, BaseException], None],
 ) -> None:
-    """Run `todo` as Ray tasks (one CPU each), finishing each result as soon as it arrives."""
+    """Run `todo` as Ray tasks (one CPU each), saving each result here as soon as it arrives (the
+    tasks may run on other machines); on Ctrl-C or SIGTERM the results that are ready are saved
+    before the rest are cancelled."""
     if not todo:
         return
     try:
@@ -324,15 +493,61 @@ def _run_on_ray(
         else:
             # Job functions live in the installed package, so workers import them as we do.
             ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
-    task = ray.remote(num_cpus=1)(run)
+    task = ray.remote(num_cpus=1, max_retries=0)(run)
     pending = {task.remote(job): job for job in todo}
+
+    def collect(refs: Sequence[Any]) -> None:
+        for ref in refs:
+            job = pending.pop(ref)
+            try:
+                result = ray.get(ref)
+            except ray.exceptions.RayTaskError as error:
+                fail(job, error.as_instanceof_cause())  # type: ignore[no-untyped-call]
+            except ray.exceptions.RayError as error:
+                fail(job, error)
+            else:
+                finish(job, result, False)
+
     try:
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
-            for ref in done:
-                finish(pending.pop(ref), ray.get(ref))
+            collect(done)
     finally:
+        # Interrupted: save what is ready before cancelling the rest.
+        if pending:
+            ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=0)
+            with contextlib.suppress(Exception):
+                collect(ready)
         for ref in pending:
             ray.cancel(ref, force=True)
         if started_here:
             ray.shutdown()
+
+
+def rerun_failed(path: str | Path) -> TrialResult:
+    """Run again the trial recorded in a `<key>.failed.json` that a sweep wrote, in this process
+    (for debugging one failure), and save it beside, as `<key>.json`, if it now succeeds."""
+    data = read_failed(path)
+    record = {k: v for k, v in data["record"].items() if k != "arena"}
+    record["events"] = tuple(Event(**e) for e in record.get("events", ()))
+    spec = TrialSpec(**record)
+    result = run_spec(spec)
+    _save_trial(result, data["record"], Path(path).with_name(f"{spec.key}.json"))
+    return result
+
+
+def read_failed(path: str | Path) -> dict[str, Any]:
+    data: dict[str, Any] = json.loads(Path(path).read_text(encoding="utf-8"))
+    if data.get("unit") != "trial":
+        raise ValueError(
+            f"{path} records a failed {data.get('unit')!r}; allowed: a failed trial "
+            "(other jobs rerun by rerunning their command)"
+        )
+    return data
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        raise SystemExit("usage: python -m agents.experiments.sweep <key>.failed.json")
+    done = rerun_failed(sys.argv[1])
+    print(f"{done.label}: ran again without error and was saved beside {sys.argv[1]}")

@@ -1,0 +1,178 @@
+"""Writing and reading result files safely.
+
+A result is written to a temporary file with a unique name in the same folder, flushed to disk,
+and renamed over its destination, so a reader (or a resumed sweep) sees the old file or the new
+one, never half of one; concurrent writers never share a temporary file. Nothing that is not a
+regular file (a symlink, a FIFO, a device node, a folder) is ever replaced: that is refused with
+a ValueError naming the path and what it is.
+
+Stored records carry a schema version and a SHA-256 checksum of their content, checked on load:
+a truncated, garbled or hand-edited file is reported in one line naming the file and what is
+wrong (`CorruptFileError`), never used silently.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import stat
+import tempfile
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+SCHEMA_VERSION = 1
+MANIFEST = "CHECKSUMS.sha256"  # for records saved before they carried their own checksum
+
+
+class CorruptFileError(ValueError):
+    """A stored file that cannot be trusted (truncated, not JSON, edited, wrong schema)."""
+
+
+def _kind(mode: int) -> str:
+    for test, name in (
+        (stat.S_ISLNK, "a symbolic link"),
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISDIR, "a folder"),
+    ):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def check_writable(path: str | Path) -> Path:
+    """`path` as a Path, after checking that writing it replaces at most a regular file and that
+    its folder exists; a ValueError naming the path otherwise (call it before long work)."""
+    path = Path(path)
+    try:
+        mode = path.lstat().st_mode
+    except FileNotFoundError:
+        mode = None
+    if mode is not None and not stat.S_ISREG(mode):
+        raise ValueError(
+            f"{path} is {_kind(mode)}; refusing to replace it with a regular file; allowed: a "
+            "new path or an existing regular file"
+        )
+    if not path.parent.is_dir():
+        raise ValueError(
+            f"{path}: the folder {path.parent} does not exist; allowed: an existing folder"
+        )
+    return path
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary path to write into; on leaving the block it is flushed to disk and renamed
+    over `path` (on an error it is removed and `path` is untouched)."""
+    path = check_writable(path)
+    # the same ending as the destination, for writers that infer a format from it (figures)
+    fd, name = tempfile.mkstemp(
+        dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}"
+    )
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _sync_folder(path.parent)
+
+
+def _sync_folder(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # pragma: no cover - folders that cannot be opened (some platforms)
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover
+        pass
+    finally:
+        os.close(fd)
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write `text` (UTF-8) to `path` atomically and safely (see the module)."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def _digest(data: Mapping[str, Any]) -> str:
+    canonical = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def write_record(path: str | Path, data: Mapping[str, Any]) -> Path:
+    """Write `data` as JSON with `schema` and `checksum` fields added (atomically)."""
+    body = {k: v for k, v in data.items() if k not in ("schema", "checksum")}
+    body["schema"] = SCHEMA_VERSION
+    body["checksum"] = _digest(body)
+    return write_text(path, json.dumps(body))
+
+
+def read_record(path: str | Path) -> dict[str, Any]:
+    """The JSON record at `path`, checked: its checksum (or, for a record saved before records
+    carried one, its folder's `CHECKSUMS.sha256` entry, where there is one) and schema. A
+    `CorruptFileError` names the file and what is wrong."""
+    path = Path(path)
+    raw = path.read_bytes()
+    try:
+        data = json.loads(raw)
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise CorruptFileError(
+            f"{path} is not valid JSON ({error}): truncated or garbled"
+        ) from None
+    if not isinstance(data, dict):
+        raise CorruptFileError(f"{path} holds {type(data).__name__}, not a JSON object")
+    if "checksum" in data:
+        stored = data.pop("checksum")
+        if _digest(data) != stored:
+            raise CorruptFileError(
+                f"{path} does not match its checksum: it was edited or damaged after it was saved"
+            )
+        schema = data.pop("schema", None)
+        if schema != SCHEMA_VERSION:
+            raise CorruptFileError(
+                f"{path} has schema {schema!r}; allowed: {SCHEMA_VERSION} (this version's)"
+            )
+        return data
+    expected = manifest_entry(path)
+    if expected is not None and hashlib.sha256(raw).hexdigest() != expected:
+        raise CorruptFileError(
+            f"{path} does not match its entry in {MANIFEST}: it was edited or damaged after it "
+            "was saved"
+        )
+    return data
+
+
+def manifest_entry(path: Path) -> str | None:
+    """The SHA-256 of `path` listed in its folder's manifest, if there is one."""
+    manifest = path.parent / MANIFEST
+    if not manifest.exists():
+        return None
+    for line in manifest.read_text(encoding="utf-8").splitlines():
+        digest, _, name = line.partition("  ")
+        if name == path.name:
+            return digest
+    return None
+
+
+def write_manifest(folder: str | Path, pattern: str = "*.json") -> Path:
+    """List the SHA-256 of every file matching `pattern` in `folder` in `CHECKSUMS.sha256`
+    (the format `sha256sum -c` reads), for records saved before they carried a checksum."""
+    folder = Path(folder)
+    lines = [
+        f"{hashlib.sha256(p.read_bytes()).hexdigest()}  {p.name}"
+        for p in sorted(folder.glob(pattern))
+    ]
+    return write_text(folder / MANIFEST, "\n".join(lines) + "\n")
