@@ -38,15 +38,31 @@ T = TypeVar("T")
 
 
 def _build(factory: Callable[..., T], name: str, params: Mapping[str, Any]) -> T:
-    """Call `factory(**params)`; parameters it does not take become a ValueError naming them."""
+    """Call `factory(**params)`; parameters it does not take, or required ones that are missing,
+    become a ValueError naming only those and, in words, what the allocator takes."""
     signature = inspect.signature(factory)
-    try:
-        signature.bind(**params)
-    except TypeError as error:
+    takes = {
+        p.name: p
+        for p in signature.parameters.values()
+        if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+    }
+    described = ", ".join(
+        p.name if p.default is p.empty else f"{p.name} (default {p.default!r})"
+        for p in takes.values()
+    )
+    allowed = f"allowed: {described}" if takes else "allowed: no parameters"
+    unknown = sorted(set(params) - set(takes))
+    if unknown:
         raise ValueError(
-            f"parameters {sorted(params)} of allocator {name!r} are invalid ({error}); "
-            f"allowed: {signature}"
-        ) from None
+            f"allocator {name!r} has no parameter{'s' if len(unknown) > 1 else ''} "
+            f"{', '.join(unknown)}; {allowed}"
+        )
+    missing = [n for n, p in takes.items() if p.default is p.empty and n not in params]
+    if missing:
+        raise ValueError(
+            f"allocator {name!r} needs the parameter{'s' if len(missing) > 1 else ''} "
+            f"{', '.join(missing)}; {allowed}"
+        )
     return factory(**params)
 
 

@@ -466,7 +466,9 @@ def test_sweep_unknown_allocator_raises(tmp_path: Path) -> None:
     assert not result_path(tmp_path, "x").exists()
     # a known allocator without its required parameters: named, with what it takes
     spec = TrialSpec(key="y", allocator="greedy", seed=0, env_kwargs={"preset": "dahl2004"}, **TINY)
-    with pytest.raises(ValueError, match=r"parameters \[\] of allocator 'greedy' are invalid"):
+    with pytest.raises(
+        ValueError, match="allocator 'greedy' needs the parameter model; allowed: model"
+    ):
         run_sweep([spec], tmp_path, workers=1)
     assert not result_path(tmp_path, "y").exists()
 
