@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+import sys
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,6 +21,15 @@ from tavc_env.layout import WALL_CLEARANCE_M, waiting_slots
 
 Point = tuple[float, float]
 MAX_SPEED_M_S = 2.0  # a Pioneer-sized robot; far above the 0.2-0.3 m/s of the paper
+
+
+def _items(name: str, value: object, kind: str) -> tuple[Any, ...]:
+    """`value` as a tuple, refusing what is not a sequence of items (a number, None, a string, a
+    mapping) with a ValueError instead of the TypeError `tuple()` would raise."""
+    ok = isinstance(value, Iterable) and not isinstance(value, (str, bytes, Mapping))
+    require(ok, name, value, f"a sequence of {kind}")
+    assert isinstance(value, Iterable)
+    return tuple(value)
 
 
 def _point(name: str, value: object) -> Point:
@@ -140,9 +150,12 @@ class ArenaConfig:
     breakdowns: tuple[Breakdown, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "circuits", tuple(self.circuits))
-        object.__setattr__(self, "robots", tuple(self.robots))
-        object.__setattr__(self, "breakdowns", tuple(self.breakdowns))
+        for name, kind in (
+            ("circuits", "tavc_env.Circuit"),
+            ("robots", "tavc_env.Robot"),
+            ("breakdowns", "tavc_env.Breakdown"),
+        ):
+            object.__setattr__(self, name, _items(name, getattr(self, name), kind))
         self._validate()
 
     @property
@@ -152,6 +165,12 @@ class ArenaConfig:
     @property
     def n_robots(self) -> int:
         return len(self.robots)
+
+    @property
+    def max_time_s(self) -> float:
+        """The longest simulated time a float still resolves to a millionth of the physics step
+        (time is `ticks * dt`; beyond this the tolerances of the event checks no longer hold)."""
+        return self.dt * 1e-6 / sys.float_info.epsilon
 
     def _validate(self) -> None:
         positive = {
@@ -386,7 +405,7 @@ PRESETS: Mapping[str, Any] = {
 
 def preset(name: str) -> ArenaConfig:
     """The named preset's configuration."""
-    require(name in PRESETS, "preset", name, f"one of {sorted(PRESETS)}")
+    require(isinstance(name, str) and name in PRESETS, "preset", name, f"one of {sorted(PRESETS)}")
     config: ArenaConfig = PRESETS[name]()
     return config
 

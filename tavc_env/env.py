@@ -12,7 +12,9 @@
 | State | `state()`: per robot position, heading, velocity, circuit and phase; per station occupancy and line |
 
 Robots that do not have to decide may be given any action (or none): it is ignored. A robot that
-has to decide must be given a valid action, or `step` raises a ValueError and changes nothing.
+has to decide must be given a valid action, or `step` raises a ValueError and changes nothing. In
+the AEC view (`env()`), the agent that is given a bad action gets the ValueError at once, and the
+env is left as it was.
 """
 
 from __future__ import annotations
@@ -24,8 +26,9 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
-from pettingzoo.utils.conversions import parallel_to_aec
+from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.env import AECEnv
+from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, make_config
@@ -83,11 +86,14 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         require(
             is_integer(max_cycles) and max_cycles >= 1, "max_cycles", max_cycles, "an integer >= 1"
         )
+        longest = self.config.max_time_s  # what a float resolves (ArenaConfig.max_time_s)
+        resolved = f"at most {longest:.4g} s, beyond which a float no longer resolves dt / 1e6"
         require(
-            max_sim_time_s == math.inf or (is_number(max_sim_time_s) and max_sim_time_s >= dt),
+            max_sim_time_s == math.inf
+            or (is_number(max_sim_time_s) and dt <= max_sim_time_s <= longest),
             "max_sim_time_s",
             max_sim_time_s,
-            f"a time >= one physics step ({dt} s), or math.inf",
+            f"a time >= one physics step ({dt} s) and {resolved}, or math.inf",
         )
         if decision_interval_s is not None:
             steps = decision_interval_s / dt if is_number(decision_interval_s) else 0.0
@@ -98,6 +104,16 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
                 "None (event-driven) or a finite whole number of physics steps "
                 f"(multiples of dt = {dt} s)",
             )
+            episode = min(float(max_sim_time_s), longest)
+            require(
+                decision_interval_s <= episode * (1 + 1e-9),
+                "decision_interval_s",
+                decision_interval_s,
+                f"an interval of at most max_sim_time_s = {max_sim_time_s:g} s (a longer one "
+                "would end the episode at its first step)"
+                if max_sim_time_s != math.inf
+                else f"an interval {resolved}",
+            )
         require(
             reward_time_unit in TIME_UNITS,
             "reward_time_unit",
@@ -105,10 +121,10 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             str(list(TIME_UNITS)),
         )
         require(
-            is_number(step_cap_s) and step_cap_s >= dt,
+            is_number(step_cap_s) and dt <= step_cap_s <= longest,
             "step_cap_s",
             step_cap_s,
-            f"a finite time >= one physics step ({dt} s)",
+            f"a finite time >= one physics step ({dt} s) and {resolved}",
         )
         self.render_mode = render_mode
         self.max_cycles = int(max_cycles)
@@ -162,8 +178,14 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, dict[str, Any]]]:
+        require(
+            seed is None or (is_integer(seed) and seed >= 0),
+            "seed",
+            seed,
+            "None or an integer >= 0 (int or numpy integer; not bool, not float)",
+        )
         if seed is not None or self._rng is None:
-            self._rng, _ = seeding.np_random(seed)
+            self._rng, _ = seeding.np_random(None if seed is None else int(seed))
         self.sim.reset(self._rng)
         self.agents = self.possible_agents[:]
         self.num_cycles = 0
@@ -308,26 +330,41 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         assert isinstance(actions, dict)
         for agent in actions:
             self._agent_index(agent, "action key")
-        m = self.config.n_circuits
         deciding = self.sim.tasks.needs_decision()
         choices = []
         for i in np.flatnonzero(deciding):
             agent = self.possible_agents[i]
-            if agent not in actions or actions[agent] is None:
-                raise ValueError(
-                    f"missing action for {agent}, which must decide; allowed: an integer in [0, {m - 1}]"
-                )
-            a = actions[agent]
-            if isinstance(a, np.ndarray) and a.shape == ():
-                a = a.item()
-            require(
-                is_integer(a) and 0 <= int(a) < m,
-                f"action of {agent}",
-                a,
-                f"an integer circuit index in [0, {m - 1}]",
-            )
-            choices.append((int(i), int(a)))
+            choices.append((int(i), self._circuit_of(agent, actions.get(agent))))
         return choices
+
+    def must_decide(self, agent: str) -> bool:
+        """Whether `agent` has to be given an action in the next `step` (its info's
+        `action_required`, before the episode ends)."""
+        i, _ = self._agent_index(agent, "agent")
+        return bool(self.agents) and bool(self.sim.tasks.needs_decision()[i])
+
+    def check_action(self, agent: str, action: object) -> None:
+        """Raise the ValueError `step` would raise for `agent`'s `action` (nothing if `agent` need
+        not decide: its action would be ignored). Changes nothing."""
+        if self.must_decide(agent):
+            self._circuit_of(agent, action)
+
+    def _circuit_of(self, agent: str, a: object) -> int:
+        """The circuit index deciding robot `agent` chose, or a ValueError saying what is allowed."""
+        m = self.config.n_circuits
+        if a is None:
+            raise ValueError(
+                f"missing action for {agent}, which must decide; allowed: an integer in [0, {m - 1}]"
+            )
+        if isinstance(a, np.ndarray) and a.shape == ():
+            a = a.item()
+        require(
+            is_integer(a) and 0 <= int(a) < m,  # type: ignore[call-overload]
+            f"action of {agent}",
+            a,
+            f"an integer circuit index in [0, {m - 1}]",
+        )
+        return int(a)  # type: ignore[call-overload]
 
     def _rewards(self, out: Advance) -> dict[str, float]:
         rewards = dict.fromkeys(self.agents, 0.0)
@@ -388,6 +425,32 @@ def parallel_env(**kwargs: Any) -> TavcArenaEnv:
     return TavcArenaEnv(**kwargs)
 
 
+class AecArenaEnv(parallel_to_aec_wrapper):
+    """PettingZoo's conversion of the parallel env to AEC, checking each action as it is given.
+
+    The bare conversion stores every action until the last agent of the cycle steps, then steps
+    the parallel env: a bad action raised only then, at the wrong agent, and stayed stored, so
+    every later step raised again. Here the agent that gives a bad action gets the ValueError at
+    once and nothing is stored: the env is as it was, and a good action continues the cycle.
+    """
+
+    def __init__(self, arena: TavcArenaEnv) -> None:
+        super().__init__(arena)
+        self.arena = arena
+
+    def step(self, action: Any) -> None:
+        agent = self.agent_selection
+        if self.terminations[agent] or self.truncations[agent]:
+            require(action is None, f"action of {agent}", action, "None (the agent is done)")
+        elif self.arena.must_decide(agent):
+            m = self.arena.config.n_circuits
+            allowed = f"an integer circuit index in [0, {m - 1}]"
+            require(action is not None, f"action of {agent}", action, allowed)
+            self.arena.check_action(agent, action)
+        super().step(action)
+
+
 def env(**kwargs: Any) -> AECEnv[str, dict[str, np.ndarray], int | None]:
-    """The arena as a PettingZoo AEC env, converted from the parallel env by PettingZoo."""
-    return parallel_to_aec(parallel_env(**kwargs))
+    """The arena as a PettingZoo AEC env: PettingZoo's conversion of the parallel env, with each
+    action checked when it is given (see `AecArenaEnv`)."""
+    return OrderEnforcingWrapper(AecArenaEnv(parallel_env(**kwargs)))

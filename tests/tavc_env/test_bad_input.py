@@ -451,3 +451,215 @@ def test_decision_interval_that_is_a_multiple_of_dt_is_honoured() -> None:
     obs, _ = env.reset(seed=0)
     env.step(_all(obs))
     assert env.sim.time_s == pytest.approx(0.3)
+
+
+# -- issue 12: bad input that used to reach a traceback ----------------------------------------
+
+NOT_ITERABLE: list[tuple[dict[str, Any], str]] = [
+    ({"circuits": 5}, r"^circuits = 5 is invalid; allowed: a sequence of tavc_env\.Circuit"),
+    ({"robots": None}, r"^robots = None is invalid; allowed: a sequence of tavc_env\.Robot"),
+    ({"breakdowns": 3}, r"^breakdowns = 3 is invalid; allowed: a sequence of tavc_env\.Breakdown"),
+    ({"circuits": "ab"}, r"^circuits = 'ab' is invalid; allowed: a sequence"),
+    ({"robots": {"speed": 0.3}}, r"^robots = \{'speed': 0\.3\} is invalid; allowed: a sequence"),
+]
+
+
+@pytest.mark.parametrize(("kwargs", "pattern"), NOT_ITERABLE, ids=lambda x: repr(x)[:40])
+@pytest.mark.parametrize("view", ["parallel", "aec", "config"])
+def test_a_config_field_that_is_not_a_sequence_is_a_value_error(
+    kwargs: dict[str, Any], pattern: str, view: str
+) -> None:
+    """Used to be `TypeError: 'int' object is not iterable` from `tuple(self.circuits)`."""
+    factories = {"parallel": tavc_env.parallel_env, "aec": tavc_env.env}
+    with pytest.raises(ValueError, match=pattern):
+        if view == "config":
+            tavc_env.ArenaConfig(
+                **{**{"circuits": LANES, "robots": (tavc_env.Robot(0.3),)}, **kwargs}
+            )
+        else:
+            factories[view](**kwargs)
+
+
+@pytest.mark.parametrize("name", [[1], {"a": 1}, {1}, None, 3])
+def test_an_unhashable_or_non_string_preset_name_is_a_value_error(name: Any) -> None:
+    """`preset=[1]` used to be `TypeError: unhashable type: 'list'`."""
+    pattern = rf"^preset = {re.escape(repr(name))} is invalid; allowed: one of \['dahl2004'"
+    with pytest.raises(ValueError, match=pattern):
+        tavc_env.preset(name)
+    with pytest.raises(ValueError, match=pattern):
+        tavc_env.parallel_env(preset=name)
+
+
+INTEGER_SEEDS = [np.int64(3), np.int32(3), np.uint8(3), np.uint64(3), np.int16(3)]
+
+
+@pytest.mark.parametrize("seed", INTEGER_SEEDS, ids=lambda s: type(s).__name__)
+def test_a_numpy_integer_seed_is_the_same_seed(seed: Any) -> None:
+    """`reset(seed=np.int64(3))` used to be refused by gymnasium ("must be a python integer")."""
+    env, twin = tavc_env.parallel_env(), tavc_env.parallel_env()
+    start = env.reset(seed=seed)
+    assert repr(start) == repr(twin.reset(seed=3))
+    lockstep(env, twin, 3, start)
+
+
+def test_a_numpy_integer_seed_in_the_aec_view() -> None:
+    aec, twin = tavc_env.env(), tavc_env.env()
+    aec.reset(seed=np.int64(5))
+    twin.reset(seed=5)
+    assert repr(aec.unwrapped.state()) == repr(twin.unwrapped.state())
+
+
+BAD_SEEDS = [True, False, np.bool_(True), 3.0, np.float64(3.0), "3", -1, np.int64(-2), [3]]
+
+
+def test_a_large_python_integer_is_a_seed() -> None:
+    env = tavc_env.parallel_env()
+    env.reset(seed=2**128)  # numpy's SeedSequence takes any integer >= 0
+
+
+@pytest.mark.parametrize("seed", BAD_SEEDS, ids=repr)
+@pytest.mark.parametrize("view", ["parallel", "aec"])
+def test_a_seed_that_is_not_a_non_negative_integer_is_refused(seed: Any, view: str) -> None:
+    """`reset(seed=True)` used to be accepted as seed 1; floats, strings and negative numbers gave
+    gymnasium's own error type instead of a ValueError."""
+    env = tavc_env.parallel_env() if view == "parallel" else tavc_env.env()
+    with pytest.raises(ValueError, match=rf"^seed = {re.escape(repr(seed))} is invalid; allowed"):
+        env.reset(seed=seed)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "pattern"),
+    [
+        (
+            {"decision_interval_s": 1e300},
+            r"decision_interval_s = 1e\+300 is invalid; allowed: .*at most max_sim_time_s",
+        ),
+        (
+            {"decision_interval_s": 7200.0, "max_sim_time_s": 3600.0},
+            r"decision_interval_s = 7200\.0 is invalid; allowed: .*at most max_sim_time_s = 3600",
+        ),
+        (
+            {"decision_interval_s": 1e300, "max_sim_time_s": INF},
+            r"decision_interval_s = 1e\+300 is invalid; allowed: .*at most",
+        ),
+        ({"max_sim_time_s": 1e300}, r"max_sim_time_s = 1e\+300 is invalid; allowed: .*at most"),
+        ({"step_cap_s": 1e300}, r"step_cap_s = 1e\+300 is invalid; allowed: .*at most"),
+    ],
+)
+def test_time_arguments_beyond_the_episode_or_a_float_are_refused(
+    kwargs: dict[str, Any], pattern: str
+) -> None:
+    """`decision_interval_s=1e300` used to be accepted and truncated the episode at its first
+    step without saying why."""
+    with pytest.raises(ValueError, match=pattern):
+        tavc_env.parallel_env(**kwargs)
+
+
+def test_a_decision_interval_equal_to_the_episode_is_one_step() -> None:
+    env = tavc_env.parallel_env(decision_interval_s=60.0, max_sim_time_s=60.0)
+    obs, _ = env.reset(seed=0)
+    *_, truncations, _ = env.step(_all(obs))
+    assert all(truncations.values()) and env.sim.time_s == pytest.approx(60.0)
+
+
+# -- the AEC view ------------------------------------------------------------------------------
+
+
+def _aec_state(aec: Any) -> tuple[Any, ...]:
+    return (
+        aec.agent_selection,
+        _snapshot(aec.unwrapped),
+        repr(aec.rewards),
+        repr(aec._cumulative_rewards),
+        repr(aec.terminations),
+        repr(aec.truncations),
+    )
+
+
+def _drive(aec: Any, steps: int, rng_seed: int = 0) -> list[tuple[Any, ...]]:
+    """Run `steps` agent turns choosing a valid circuit; record each `last()`."""
+    rng = np.random.default_rng(rng_seed)
+    out = []
+    for _ in range(steps):
+        obs, reward, term, trunc, info = aec.last()
+        out.append((aec.agent_selection, repr(obs), reward, term, trunc, repr(info)))
+        aec.step(None if term or trunc else int(rng.choice(np.flatnonzero(obs["action_mask"]))))
+    return out
+
+
+@pytest.mark.parametrize("bad", [5, -1, 1.5, "0", True, None, np.float32(1.0)], ids=repr)
+@pytest.mark.parametrize("turn", [0, 2, 5])
+def test_aec_bad_action_is_refused_at_its_agent_and_changes_nothing(bad: Any, turn: int) -> None:
+    """PettingZoo's bare `parallel_to_aec` stored the bad action, raised when the *last* agent
+    stepped (naming another agent), kept the bad action and so raised again on every later step:
+    the env was stuck. Now the agent that gives the bad action gets the ValueError, and the env
+    then runs exactly like a twin that never saw it."""
+    aec, twin = tavc_env.env(), tavc_env.env()
+    aec.reset(seed=4)
+    twin.reset(seed=4)
+    _drive(aec, turn)
+    _drive(twin, turn)
+    agent = aec.agent_selection
+    assert aec.infos[agent]["action_required"]
+    before = _aec_state(aec)
+    pattern = rf"^action of {agent} = {re.escape(repr(bad))} is invalid; allowed: .*\[0, 1\]"
+    with pytest.raises(ValueError, match=pattern):
+        aec.step(bad)
+    assert _aec_state(aec) == before
+    assert _drive(aec, 20, rng_seed=1) == _drive(twin, 20, rng_seed=1)
+
+
+def test_aec_action_of_a_robot_that_need_not_decide_is_ignored_as_in_the_parallel_view() -> None:
+    aec = tavc_env.env()
+    aec.reset(seed=0)
+    _drive(aec, 6)  # the first decisions; then most robots are busy
+    for _ in range(12):
+        agent = aec.agent_selection
+        if not aec.infos[agent]["action_required"]:
+            aec.step(99)  # ignored, like an action for a busy robot in the parallel view
+        else:
+            aec.step(0)
+    assert aec.unwrapped.num_cycles == 3
+
+
+def test_aec_action_for_a_finished_agent_must_be_none() -> None:
+    aec = tavc_env.env(max_cycles=1)
+    aec.reset(seed=0)
+    _drive(aec, 6)
+    agent = aec.agent_selection
+    assert aec.truncations[agent]
+    with pytest.raises(ValueError, match=rf"^action of {agent} = 0 is invalid; allowed: None"):
+        aec.step(0)
+    aec.step(None)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "pattern"),
+    [
+        ({"robot": 0, "at_s": INF}, r"^breakdown\.at_s = inf is invalid; allowed: a time >= 0"),
+        ({"robot": 0, "at_s": NAN}, r"^breakdown\.at_s = nan is invalid"),
+        ({"robot": 0, "at_s": True}, r"^breakdown\.at_s = True is invalid"),
+        ({"robot": 0, "at_s": "5"}, r"^breakdown\.at_s = '5' is invalid"),
+        ({"robot": 0.0, "at_s": 5.0}, r"^breakdown\.robot = 0\.0 is invalid; allowed: a robot"),
+        ({"robot": "robot_0", "at_s": 5.0}, r"^breakdown\.robot = 'robot_0' is invalid"),
+        (
+            {"robot": 0, "at_s": 5.0, "repair_after_s": INF},
+            r"^breakdown\.repair_after_s = inf is invalid; allowed: None or a duration > 0",
+        ),
+        ({"robot": 0, "at_s": 5.0, "repair_after_s": -1.0}, r"^breakdown\.repair_after_s = -1"),
+    ],
+)
+def test_a_scheduled_breakdown_is_checked_when_it_is_made(
+    kwargs: dict[str, Any], pattern: str
+) -> None:
+    """Times finite and >= 0, a robot index; the index is checked against the team when the
+    arena is built (`breakdowns[0].robot = 6` above), never when the breakdown fires."""
+    with pytest.raises(ValueError, match=pattern):
+        tavc_env.Breakdown(**kwargs)
+
+
+def test_a_numpy_integer_is_a_breakdown_robot_index() -> None:
+    env = tavc_env.parallel_env(breakdowns=(tavc_env.Breakdown(np.int64(5), np.float64(1.0)),))
+    obs, _ = env.reset(seed=0)
+    _, _, _, _, infos = env.step(_all(obs))
+    assert infos["robot_5"]["broken"]
