@@ -22,6 +22,30 @@ from tavc_env.layout import WALL_CLEARANCE_M, waiting_slots
 Point = tuple[float, float]
 MAX_SPEED_M_S = 2.0  # a Pioneer-sized robot; far above the 0.2-0.3 m/s of the paper
 
+# The physics envelope (issue 12). Measured by `python -m tests.tavc_env.test_envelope` (about
+# 10 min on one core): dahl2004's lanes with 6, 16 and 24 robots (fast and slow in turn, random
+# circuit choices), speed noise 0.1 and 0.3, 900 simulated s each, at radius 0.22 m with dt 0.1,
+# 0.2 and 0.25 s and at radius 0.1 m with dt 0.05 s; the deepest overlap of two robots (or of a
+# robot and a wall), worst of the 24 runs per ratio, against max speed x dt / radius:
+#   ratio       0.10   0.15   0.20   0.25   0.30   0.35   0.40   0.45   0.50
+#   overlap/r   0.000  0.004  0.000  0.015  0.059  0.050  0.071  0.119  0.236
+# (an earlier run, 1200 s and 2-3 seeds: 0.093 r at 0.40, 0.21 r at 0.45, 0.32 r at 0.91 and
+# 1.7 r, robots driving through each other, at 2.3). The tolerance is a tenth of the radius: 0.40
+# is the largest ratio measured within it, and the bound keeps a margin below. The shipped
+# presets run at 0.136 (0.3 m/s, dt 0.1 s, radius 0.22 m). Not covered by this bound: large robots
+# packed tight (radius 0.4 m, 24 robots in 16 x 12 m) press 0.05 radii into each other and the
+# walls even at 0.025 radii per step; that is crowding, not the step (issue 12, item 1).
+MAX_STEP_OVER_RADIUS = 0.35
+OVERLAP_TOLERANCE = 0.1  # deepest overlap accepted inside the envelope, in robot radii
+# The avoidance weight ramps from 0 at the sensing range to 1 at contact (2 radii): at 2 radii it
+# divides by zero (`navigation._steer_one`, ZeroDivisionError mid-run); just above, robots see each
+# other only when touching (at 2.05 radii six dahl2004 robots needed 23 escape manoeuvres in 900 s,
+# none at >= 2.3 radii).
+MIN_SENSING_OVER_RADIUS = 2.5
+# Positions are floats: at 1e6 m a float still resolves 1e-10 m, and the neighbour grid's cell
+# numbers fit a 64-bit integer with room to spare.
+MAX_ARENA_SIDE_M = 1e6
+
 
 def _items(name: str, value: object, kind: str) -> tuple[Any, ...]:
     """`value` as a tuple, refusing what is not a sequence of items (a number, None, a string, a
@@ -187,6 +211,14 @@ class ArenaConfig:
         }
         for name, value in positive.items():
             require(is_number(value) and value > 0, name, value, "a finite number > 0")
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            require(
+                value <= MAX_ARENA_SIDE_M,
+                name,
+                value,
+                f"a side of at most {MAX_ARENA_SIDE_M:g} m (positions are floats)",
+            )
         require(
             isinstance(self.service_scales_with_speed, bool),
             "service_scales_with_speed",
@@ -232,6 +264,7 @@ class ArenaConfig:
             require(isinstance(c, Circuit), f"circuits[{i}]", c, "a tavc_env.Circuit")
         for i, r in enumerate(self.robots):
             require(isinstance(r, Robot), f"robots[{i}]", r, "a tavc_env.Robot")
+        self._validate_envelope()
         margin = self.robot_radius + WALL_CLEARANCE_M
         inside = f"x in [{margin}, {self.width - margin}], y in [{margin}, {self.height - margin}]"
         stations = [(name, p) for name, p, _ in self.stations()]
@@ -278,6 +311,30 @@ class ArenaConfig:
                 f"room for all {self.n_robots - 1} robots that may wait there (a larger arena, "
                 "fewer robots, circuits further apart or another queue_direction)",
             )
+
+    def _validate_envelope(self) -> None:
+        """The physics envelope: steps short enough that robots do not interpenetrate, and a
+        sensing range beyond contact (see MAX_STEP_OVER_RADIUS and MIN_SENSING_OVER_RADIUS)."""
+        r = self.robot_radius
+        fastest = max(robot.speed for robot in self.robots)
+        longest = MAX_STEP_OVER_RADIUS * r / fastest
+        require(
+            fastest * self.dt <= MAX_STEP_OVER_RADIUS * r * (1 + 1e-9),
+            "dt",
+            self.dt,
+            f"a physics step of at most {MAX_STEP_OVER_RADIUS:g} x robot_radius / the top speed "
+            f"= {longest:.4g} s here (radius {r:g} m, top speed {fastest:g} m/s): a robot must move "
+            f"less than {MAX_STEP_OVER_RADIUS:g} radii per step or robots interpenetrate; use a "
+            "smaller dt, slower robots or a larger radius",
+        )
+        least = MIN_SENSING_OVER_RADIUS * r
+        require(
+            self.sensing_range_m >= least * (1 - 1e-9),
+            "sensing_range_m",
+            self.sensing_range_m,
+            f"a range of at least {MIN_SENSING_OVER_RADIUS:g} x robot_radius = {least:.4g} m "
+            "(robots must sense each other before they touch at 2 x robot_radius)",
+        )
 
     def stations(self) -> list[tuple[str, Point, Point]]:
         """(name, dock, queue direction) of every station: source then sink of each circuit."""

@@ -225,6 +225,22 @@ def neighbour_cell_m(radius: float, sensing: float) -> float:
     return max(sensing, brake) * (1.0 + 1e-9)
 
 
+def _first_at_least(keys: np.ndarray, value: int) -> int:
+    """The first index of sorted `keys` whose key is >= `value` (len(keys) if none)."""
+    lo = 0
+    hi = keys.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] < value:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+_first_at_least_c = _compile(_first_at_least)
+
+
 def _steer_all_grid(
     pos: np.ndarray,
     heading: np.ndarray,
@@ -243,36 +259,45 @@ def _steer_all_grid(
 ) -> None:
     """`steer_all` for large teams: robots are binned into square cells of side `cell`
     (`neighbour_cell_m`), and each robot considers only those in the 3 x 3 cells around it, in
-    increasing index order, so the commands are exactly those of `steer_all` in O(n) time."""
+    increasing index order, so the commands are exactly those of `steer_all` in O(n log n) time.
+
+    The grid is sparse: the robots on the floor are sorted by cell (row-major cell number, then
+    index) and each row of three cells is found by binary search, so memory and time do not grow
+    with the arena's area (a dense table of every cell died with MemoryError in a 1e5 m arena)."""
     n = pos.shape[0]
     nx = max(int(width / cell) + 1, 1)
     ny = max(int(height / cell) + 1, 1)
     cx = np.empty(n, np.int64)
     cy = np.empty(n, np.int64)
-    start = np.zeros(nx * ny + 1, np.int64)
+    key = np.empty(n, np.int64)
+    n_present = 0
     for i in range(n):
         cx[i] = min(max(int(pos[i, 0] / cell), 0), nx - 1)
         cy[i] = min(max(int(pos[i, 1] / cell), 0), ny - 1)
+        key[i] = cy[i] * nx + cx[i]
         if present[i]:
-            start[cy[i] * nx + cx[i] + 1] += 1
-    for k in range(nx * ny):
-        start[k + 1] += start[k]
-    fill = start[:-1].copy()
-    items = np.empty(n, np.int64)
-    for i in range(n):  # in index order, so each cell lists its robots in increasing order
+            n_present += 1
+    members = np.empty(n_present, np.int64)
+    k = 0
+    for i in range(n):
         if present[i]:
-            c = cy[i] * nx + cx[i]
-            items[fill[c]] = i
-            fill[c] += 1
+            members[k] = i
+            k += 1
+    # stable: robots of one cell stay in increasing index order
+    items = members[np.argsort(key[members], kind="mergesort")]
+    keys = key[items]
     others = np.empty(n, np.int64)
     for i in range(n):
         m = 0
+        x0 = max(cx[i] - 1, 0)
+        x1 = min(cx[i] + 1, nx - 1)
         for yy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
-            for xx in range(max(cx[i] - 1, 0), min(cx[i] + 2, nx)):
-                c = yy * nx + xx
-                for k in range(start[c], start[c + 1]):
-                    others[m] = items[k]
-                    m += 1
+            # cells x0..x1 of row yy are the consecutive cell numbers row + x0 .. row + x1
+            lo = _first_at_least_c(keys, yy * nx + x0)
+            hi = _first_at_least_c(keys, yy * nx + x1 + 1)
+            for k in range(lo, hi):
+                others[m] = items[k]
+                m += 1
         # the cells are visited row by row: merge them into increasing index order
         for a in range(1, m):
             v = others[a]
