@@ -3,19 +3,19 @@
     tavc trial --allocator softmax_tavc --hours 2            # one trial, progress bar, summary
     tavc trial --allocator greedy --preset three_circuits_three_classes
     tavc record --allocator random --minutes 5 --out arena.gif
-    tavc reproduce                                          # benchmarks/table1.py (the paper)
-    tavc bench allocators --quick                           # any script in benchmarks/
+    tavc reproduce                                          # the paper's Table 1 (study table1)
+    tavc bench allocators --quick                           # any study in agents.studies
     tavc plot timeline trial.json --out timeline.png        # figures from saved results
 
-`tavc <command> --help` explains each command. Benchmark scripts live in the source checkout
-(`benchmarks/`), so `reproduce` and `bench` need the package installed from it (`pip install -e .`).
+`tavc <command> --help` explains each command. `reproduce` and `bench` run the package's studies
+(`agents.studies`), the same code as the scripts in `benchmarks/`.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import runpy
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -23,35 +23,21 @@ from typing import Any
 
 import numpy as np
 
+from agents import studies
+from agents.experiments.files import check_writable
+from agents.experiments.provenance import load_provenance
 from agents.experiments.registry import ALLOCATORS, TEAMS, make_allocator
 from agents.experiments.runner import TrialResult, run_trial
-from tavc_env import PRESETS, metrics
+from agents.studies.common import RESULTS_DIR, arena_overrides, parse_key_values, parse_settings
+from tavc_env import PRESETS, make_config, metrics
 
-REPO = Path(__file__).resolve().parent.parent
-BENCHMARKS = REPO / "benchmarks"
 NEEDS_MODEL = ("static", "greedy", "auction")
-
-
-def parse_key_values(items: Sequence[str], option: str, example: str) -> dict[str, Any]:
-    """`KEY=VALUE` items (as given to `option`) as a dict: values that parse as JSON (numbers,
-    true/false, lists) are used as such, anything else as a string; whoever receives them then
-    names any key or value it does not accept. A ValueError shows `example` for a malformed one."""
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"{option} {item!r} is invalid; allowed: KEY=VALUE, e.g. {example}")
-        try:
-            out[key] = json.loads(text)
-        except json.JSONDecodeError:
-            out[key] = text
-    return out
 
 
 def _allocator(args: argparse.Namespace) -> Any:
     params = parse_key_values(args.param, "--param", "temperature=0.01")
     if args.allocator in NEEDS_MODEL and "model" not in params and "circuits" not in params:
-        path = args.model or BENCHMARKS / "results" / "tavc_model" / args.preset / "model.json"
+        path = args.model or RESULTS_DIR / "tavc_model" / args.preset / "model.json"
         if not Path(path).exists():
             raise ValueError(
                 f"allocator {args.allocator!r} needs the TAVC model of the arena, and {path} does "
@@ -63,7 +49,7 @@ def _allocator(args: argparse.Namespace) -> Any:
         except (OSError, json.JSONDecodeError) as error:
             raise ValueError(
                 f"--model {path} could not be read ({error}); allowed: a model.json written by "
-                "benchmarks/tavc_model.py"
+                "the tavc_model study (tavc bench tavc_model)"
             ) from None
     return make_allocator(args.allocator, **params)
 
@@ -99,6 +85,9 @@ def _trial_options(parser: argparse.ArgumentParser) -> None:
 def cmd_trial(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    allocator = _allocator(args)  # bad parameters and arenas are refused before the run starts
+    overrides = arena_overrides(args.set)
+    make_config(args.preset, **overrides)
     total = args.convergence_h + args.hours
     bar = tqdm(total=round(total * 3600), unit="sim s", dynamic_ncols=True, file=sys.stdout)
     done = [0]
@@ -109,13 +98,13 @@ def cmd_trial(args: argparse.Namespace) -> int:
 
     try:
         result = run_trial(
-            _allocator(args),
+            allocator,
             seed=args.seed,
             convergence_s=args.convergence_h * 3600.0,
             measured_s=args.hours * 3600.0,
             progress=progress,
             preset=args.preset,
-            **parse_key_values(args.set, "--set", "source_service_s=15"),
+            **overrides,
         )
     finally:
         bar.close()
@@ -180,7 +169,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         preset=args.preset,
         render_mode="rgb_array",
         decision_interval_s=args.frame_s,
-        **parse_key_values(args.set, "--set", "source_service_s=15"),
+        **arena_overrides(args.set),
     )
     if kind == ".png":
         frames[-1].save(args.out)
@@ -205,10 +194,10 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from agents.analysis import plots
 
     if args.what == "interference":
-        source = args.source or BENCHMARKS / "results" / "interference.csv"
+        source = args.source or RESULTS_DIR / "interference.csv"
         plots.interference_curve(_existing(source), args.out)
     elif args.what == "table1":
-        return _run_script("table1", table1_redraw_args(_existing(args.source)))
+        return _redraw_table1(_existing(args.source))
     else:
         trials = {}
         for source in args.source_list:
@@ -224,24 +213,19 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
-def table1_redraw_args(folder: Path) -> list[str]:
-    """The `benchmarks/table1.py` arguments that made the results in `folder`, read back from its
-    `table1.json` and saved trials, so that rerunning loads every trial and only redraws."""
-    settings = json.loads(_existing(folder / "table1.json").read_text())["metadata"]["settings"]
-    found = {p.stem.rsplit("_seed", 1)[0] for p in (folder / "trials").glob("*.json")}
-    order = ["softmax", "epsilon", "random"]  # table1.py's own order of its columns
-    conditions = sorted(found, key=lambda c: (order.index(c) if c in order else len(order), c))
-    if not conditions:
+def _redraw_table1(folder: Path) -> int:
+    """Table 1's reports and figures written again from the trials saved in `folder`, with the
+    settings its provenance records (every trial is loaded, none rerun)."""
+    import agents.studies.table1 as table1
+
+    meta = load_provenance(folder)
+    if meta is None:
         raise ValueError(
-            f"{folder}/trials holds no saved trials; allowed: a table1.py output folder"
+            f"{folder} has no provenance.json; allowed: an output folder of the table1 study"
         )
-    argv = ["--out", str(folder), "--conditions", ",".join(conditions)]
-    for key in ("preset", "trials", "convergence_h", "measured_h", "init", "temperature"):
-        argv += [f"--{key.replace('_', '-')}", str(settings[key])]
-    argv += ["--epsilon", str(settings["epsilon"]), "--seed", str(settings["seed"])]
-    for key, value in settings.get("overrides", {}).items():
-        argv += ["--set", f"{key}={json.dumps(value)}"]
-    return argv
+    outcome = table1.run(table1.settings_from_provenance(meta, folder))
+    print(outcome.text)
+    return 0
 
 
 def _existing(path: str | Path) -> Path:
@@ -252,29 +236,13 @@ def _existing(path: str | Path) -> Path:
     return Path(path)
 
 
-def _run_script(name: str, argv: Sequence[str]) -> int:
-    path = BENCHMARKS / f"{name}.py"
-    if not path.exists():
-        raise ValueError(
-            f"benchmark script {path} is missing; the benchmarks live in the source checkout: "
-            "clone the repository and pip install -e . there"
-        )
-    # run it as `python benchmarks/<name>.py <argv>` would, then put the interpreter back
-    saved_argv = sys.argv
-    sys.argv = [str(path), *argv]
-    sys.path.insert(0, str(BENCHMARKS))
-    try:
-        runpy.run_path(str(path), run_name="__main__")
-    except SystemExit as done:
-        return int(done.code or 0) if not isinstance(done.code, str) else 1
-    finally:
-        sys.path.remove(str(BENCHMARKS))
-        sys.argv = saved_argv
+def _run_study(name: str, argv: Sequence[str]) -> int:
+    """Run study `name` with command-line arguments `argv`, as `benchmarks/<name>.py` does."""
+    module = studies.load(name)
+    settings = parse_settings(module.Settings, argv, module.__doc__ or name)
+    outcome = module.run(settings)
+    print(outcome.text)
     return 0
-
-
-def benchmark_names() -> list[str]:
-    return sorted(p.stem for p in BENCHMARKS.glob("*.py") if not p.stem.startswith("_"))
 
 
 def parser() -> argparse.ArgumentParser:
@@ -323,7 +291,7 @@ def parser() -> argparse.ArgumentParser:
         "over time, one panel per trial file (from `tavc trial --out` or a benchmark's saved "
         "trials); q: the learners' Q(high) - Q(other) over time, fast against slow; interference: "
         "the interference curve t(n) from benchmarks/results/interference.csv; table1: Table 1's "
-        "reports and figures redrawn from a table1.py output folder's saved trials.",
+        "reports and figures redrawn from a table1 output folder's saved trials.",
     )
     plot.add_argument("what", choices=["timeline", "q", "interference", "table1"])
     plot.add_argument(
@@ -331,7 +299,7 @@ def parser() -> argparse.ArgumentParser:
         nargs="*",
         metavar="FILE",
         help="trial JSON file(s) (timeline, q), interference.csv (default: the committed one), "
-        "or a table1.py output folder (table1)",
+        "or a table1 output folder (table1)",
     )
     plot.add_argument("--from-h", type=float, default=None, help="timeline: start (hours)")
     plot.add_argument("--to-h", type=float, default=None, help="timeline: end (hours)")
@@ -340,22 +308,22 @@ def parser() -> argparse.ArgumentParser:
 
     reproduce = sub.add_parser(
         "reproduce",
-        help="reproduce the paper's Table 1 (benchmarks/table1.py)",
-        description="Run benchmarks/table1.py with the arguments that follow (see "
-        "`tavc reproduce --help` of the script: tavc reproduce -- --help).",
+        help="reproduce the paper's Table 1 (the table1 study)",
+        description="Run the table1 study with the arguments that follow (its options: "
+        "tavc reproduce -- --help).",
     )
     reproduce.add_argument("script_args", nargs=argparse.REMAINDER)
-    reproduce.set_defaults(run=lambda a: _run_script("table1", _strip(a.script_args)))
+    reproduce.set_defaults(run=lambda a: _run_study("table1", _strip(a.script_args)))
 
     bench = sub.add_parser(
         "bench",
-        help="run a benchmark script from benchmarks/",
-        description="Run benchmarks/NAME.py with the arguments that follow; "
-        f"NAME is one of: {', '.join(benchmark_names()) or '(no checkout found)'}.",
+        help="run one of the package's studies (the benchmarks)",
+        description="Run study NAME with the arguments that follow (its options: "
+        f"tavc bench NAME -- --help); NAME is one of: {', '.join(sorted(studies.STUDIES))}.",
     )
-    bench.add_argument("name", help="the script's name, e.g. allocators")
+    bench.add_argument("name", help="the study's name, e.g. allocators")
     bench.add_argument("script_args", nargs=argparse.REMAINDER)
-    bench.set_defaults(run=lambda a: _run_script(a.name, _strip(a.script_args)))
+    bench.set_defaults(run=lambda a: _run_study(a.name, _strip(a.script_args)))
     return top
 
 
@@ -366,22 +334,25 @@ def _strip(args: Sequence[str]) -> list[str]:
 def main(argv: Sequence[str] | None = None) -> int:
     top = parser()
     args = top.parse_args(argv)
-    if getattr(args, "name", None) is not None and args.name not in benchmark_names():
-        top.error(f"benchmark {args.name!r} is unknown; allowed: {benchmark_names()}")
+    if getattr(args, "name", None) is not None and args.name not in studies.STUDIES:
+        top.error(f"study {args.name!r} is unknown; allowed: {sorted(studies.STUDIES)}")
     for name in ("hours", "minutes", "frame_s", "fps"):
         value = getattr(args, name, None)
-        if value is not None and not value > 0:
-            top.error(f"--{name.replace('_', '-')} = {value}; allowed: a number > 0")
+        if value is not None and not (math.isfinite(value) and value > 0):
+            top.error(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")
     if getattr(args, "what", None) is not None:
         args.source = args.source_list[0] if args.source_list else None
         if args.what != "interference" and not args.source_list:
             top.error(
                 f"plot {args.what} needs its input; allowed: trial JSON file(s) for timeline and "
-                "q, a table1.py output folder for table1"
+                "q, a table1 output folder for table1"
             )
-    if getattr(args, "convergence_h", 0.0) < 0:
-        top.error(f"--convergence-h = {args.convergence_h}; allowed: a number >= 0")
+    convergence = getattr(args, "convergence_h", 0.0)
+    if not (math.isfinite(convergence) and convergence >= 0):
+        top.error(f"--convergence-h = {convergence}; allowed: a finite number >= 0")
     try:
+        if getattr(args, "out", None) is not None:
+            check_writable(args.out)  # before any simulation, not after it
         code: int = args.run(args)
     except ValueError as error:
         top.error(str(error))

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from agents.cli import benchmark_names, main
+from agents import studies
+from agents.cli import main
 from agents.experiments.runner import TrialResult
 
 TINY = ["--convergence-h", "0.02", "--hours", "0.05"]
@@ -79,10 +80,21 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             ["trial", "--param", "temperature"],
             "--param 'temperature' is invalid; allowed: KEY=VALUE",
         ),
-        (["trial", "--hours", "0"], "--hours = 0.0; allowed: a number > 0"),
-        (["trial", "--convergence-h", "-1"], "--convergence-h = -1.0; allowed: a number >= 0"),
+        (["trial", "--hours", "0"], "--hours = 0.0; allowed: a finite number > 0"),
+        (
+            ["trial", "--convergence-h", "-1"],
+            "--convergence-h = -1.0; allowed: a finite number >= 0",
+        ),
         (["trial", "--allocator", "nope"], "invalid choice: 'nope'"),
-        (["trial", "--param", "bogus=1", *TINY], "parameters ['bogus'] of allocator"),
+        (
+            ["trial", "--param", "bogus=1", *TINY],
+            "allocator 'softmax_tavc' has no parameter bogus; allowed: temperature (default",
+        ),
+        (["trial", "--allocator", "auction", "--param", "bogus=1", *TINY], "no parameter bogus;"),
+        (["trial", "--hours", "inf"], "--hours = inf; allowed: a finite number > 0"),
+        (["trial", "--convergence-h", "nan"], "--convergence-h = nan; allowed: a finite number"),
+        (["trial", *TINY, "--out", "/nonexistent/t.json"], "the folder /nonexistent does not"),
+        (["trial", *TINY, "--out", "/dev/full"], "/dev/full is a character device"),
         (["trial", "--set", "wings=2", *TINY], "unknown configuration key(s) ['wings']"),
         (
             ["trial", "--allocator", "greedy", "--preset", "dahl2004_homogeneous", *TINY],
@@ -91,12 +103,14 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
         (["record", "--out", "arena.mp4"], "allowed: a .gif (animation) or .png"),
         (["trial", "--allocator", "static", "--model", "/nonexistent.json"], "does not exist"),
         (["trial", "--allocator", "static", "--model", __file__, *TINY], "could not be read"),
-        (["bench", "nope"], "benchmark 'nope' is unknown; allowed: ["),
+        (["bench", "nope"], "study 'nope' is unknown; allowed: ["),
     ],
 )
 def test_bad_arguments_say_what_is_allowed(argv: list[str], message: str) -> None:
-    code, _, err = run(argv)
+    code, out, err = run(argv)
     assert code == 2 and message in err
+    assert "'bogus', 'model'" not in err  # names only what the user typed
+    assert "sim s" not in out + err  # refused before any simulation started
 
 
 def test_record_writes_an_animation_and_a_frame(tmp_path: Path) -> None:
@@ -114,8 +128,8 @@ def test_record_writes_an_animation_and_a_frame(tmp_path: Path) -> None:
         assert im.format == "PNG"
 
 
-def test_reproduce_and_bench_run_the_scripts(tmp_path: Path) -> None:
-    assert {"table1", "allocators", "throughput", "vacancy_chain"} <= set(benchmark_names())
+def test_reproduce_and_bench_run_the_studies(tmp_path: Path) -> None:
+    assert {"table1", "allocators", "throughput", "vacancy_chain"} <= set(studies.STUDIES)
     out_dir = tmp_path / "t1"
     argv = ["reproduce", "--", "--quick", "--workers", "1", "--out", str(out_dir)]
     code, out, _ = run(argv)
@@ -156,10 +170,13 @@ def test_table1_figures_are_redrawn_from_saved_trials(tmp_path: Path) -> None:
     assert run(argv)[0] == 0
     figure = out_dir / "figure2.png"
     figure.unlink()
+    before = (out_dir / "table1.md").read_bytes()
     code, out, err = run(["plot", "table1", str(out_dir)])
     assert code == 0, err
     assert figure.exists() and "wrote" in out
+    # nothing was rerun: the report still names the run that computed the trials, byte for byte
+    assert (out_dir / "table1.md").read_bytes() == before
     saved = json.loads((out_dir / "table1.json").read_text())["metadata"]
-    assert saved["trials_run"] == 0 and saved["trials_resumed"] == 4  # nothing rerun
+    assert saved["trials_run"] == 4 and saved["trials_resumed"] == 0
     code, _, err = run(["plot", "table1", str(tmp_path)])
-    assert code == 2 and "table1.json does not exist" in err
+    assert code == 2 and "has no provenance.json" in err
