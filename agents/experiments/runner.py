@@ -49,14 +49,21 @@ class Event:
         require(is_number(self.at_s) and self.at_s >= 0, "event.at_s", self.at_s, "a time >= 0 s")
         require(self.kind in EVENT_KINDS, "event.kind", self.kind, f"one of {list(EVENT_KINDS)}")
         if self.kind == "set_values":
-            require(
-                self.values is not None and self.robot is None,
-                "event.values",
-                self.values,
-                "the new circuit values (and no robot) for set_values",
+            require(self.robot is None, "event.robot", self.robot, "None for set_values")
+            values: Any = self.values  # whatever the caller gave; checked here
+            ok = (
+                isinstance(values, (Sequence, np.ndarray))
+                and not isinstance(values, str)
+                and len(values) >= 1
+                and all(is_number(w) and w > 0 for w in values)
             )
-            assert self.values is not None
-            object.__setattr__(self, "values", tuple(float(w) for w in self.values))
+            require(
+                ok,
+                "event.values",
+                values,
+                "a non-empty sequence of finite circuit values > 0 for set_values",
+            )
+            object.__setattr__(self, "values", tuple(float(w) for w in values))
         else:
             require(
                 is_integer(self.robot) and self.robot is not None and self.robot >= 0,
@@ -65,6 +72,59 @@ class Event:
                 f"a robot index >= 0 for {self.kind} (and no values)",
             )
             require(self.values is None, "event.values", self.values, f"None for {self.kind}")
+            object.__setattr__(self, "robot", int(self.robot))  # type: ignore[arg-type]
+
+
+def check_events(events: object, config: tavc_env.ArenaConfig, end_s: float) -> list[Event]:
+    """`events` as a list, checked against the trial's arena and length before it starts: every
+    robot in the team, one value per circuit, every event within the trial, and every repair
+    after a breakdown of its robot (an earlier event or the arena's own schedule)."""
+    ok = isinstance(events, (Sequence, np.ndarray)) and not isinstance(events, str)
+    require(ok, "events", events, "a sequence of Event (agents.experiments.runner.Event)")
+    assert isinstance(events, (Sequence, np.ndarray))
+    n, m = config.n_robots, config.n_circuits
+    checked = list(events)
+    for k, event in enumerate(checked):
+        require(
+            isinstance(event, Event), f"events[{k}]", event, "an agents.experiments.runner.Event"
+        )
+        require(
+            event.at_s < end_s,
+            f"events[{k}].at_s",
+            event.at_s,
+            f"a time within the trial, [0, {end_s:g}) s (a later event would never happen)",
+        )
+        if event.kind == "set_values":
+            assert event.values is not None
+            require(
+                len(event.values) == m,
+                f"events[{k}].values",
+                event.values,
+                f"{m} circuit values (one per circuit)",
+            )
+            continue
+        assert event.robot is not None
+        require(
+            event.robot < n, f"events[{k}].robot", event.robot, f"a robot index in [0, {n - 1}]"
+        )
+    # in the order the runner applies them (a stable sort by time); a scheduled breakdown of the
+    # arena counts from its time on (whether its own repair came first is left to the run)
+    broken: set[int] = set()
+    for k, event in sorted(enumerate(checked), key=lambda item: item[1].at_s):
+        robot = event.robot
+        if event.kind == "break_down":
+            broken.add(robot)
+        elif event.kind == "repair":
+            scheduled = {b.robot for b in config.breakdowns if b.at_s <= event.at_s}
+            require(
+                robot in broken | scheduled,
+                f"events[{k}].robot",
+                robot,
+                "a robot broken down by an earlier event or a scheduled breakdown of the arena "
+                f"(robots {', '.join(str(r) for r in sorted(broken | scheduled)) or 'none'})",
+            )
+            broken.discard(robot)
+    return checked
 
 
 @dataclass
@@ -183,10 +243,7 @@ def run_trial(
     total = float(convergence_s + measured_s)
     env = tavc_env.parallel_env(max_sim_time_s=total, max_cycles=10**9, **env_kwargs)
     agents = list(env.possible_agents)
-    for event in events:
-        require(isinstance(event, Event), "event", event, "an agents.experiments.runner.Event")
-        if event.robot is not None:
-            require(event.robot < len(agents), "event.robot", event.robot, f"< {len(agents)}")
+    events = check_events(events, env.config, total)
     team = policies if isinstance(policies, Team) else None
     if team is not None:
         table: dict[str, Policy] = team.policies(list(agents), env.config)
