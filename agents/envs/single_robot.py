@@ -20,7 +20,7 @@ import tavc_env
 from agents.driver import PolicyDriver
 from agents.learners.tavc import softmax_tavc
 from agents.policy import Policy
-from tavc_env._validation import is_number, require
+from tavc_env._validation import is_integer, is_number, require
 
 
 class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
@@ -50,6 +50,13 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
+        require(
+            seed is None or (is_integer(seed) and seed >= 0),
+            "seed",
+            seed,
+            "None or an integer >= 0 (int or numpy integer; not bool, not float)",
+        )
+        seed = None if seed is None else int(seed)
         super().reset(seed=seed)
         streams = np.random.SeedSequence(seed).spawn(len(self.env.possible_agents) + 1)
         policies = {}
@@ -65,13 +72,16 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
         return self._obs[self.robot]["observation"].copy(), dict(self._infos[self.robot])
 
     def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        a: Any = action  # anything a caller may pass; checked below
+        if isinstance(a, np.ndarray) and a.shape == ():
+            a = a.item()
         require(
-            self.action_space.contains(int(action)),
+            is_integer(a) and 0 <= a < self.n_circuits,
             "action",
             action,
-            f"a circuit index in [0, {self.n_circuits - 1}]",
+            f"a circuit index in [0, {self.n_circuits - 1}] (an int or numpy integer)",
         )
-        reward, ended = self._advance(int(action))
+        reward, ended = self._advance(int(a))
         info = dict(self._infos[self.robot])
         return self._obs[self.robot]["observation"].copy(), reward, False, ended, info
 
