@@ -49,7 +49,9 @@ class Job:
 def work(job):
     folder = Path(job.folder) / "pids"
     folder.mkdir(exist_ok=True)
-    (folder / f"{job.key}.pid").write_text(str(os.getpid()))
+    tmp = folder / f".{job.key}.pid.tmp"
+    tmp.write_text(str(os.getpid()))
+    tmp.replace(folder / f"{job.key}.pid")  # whole or absent, even if the worker is killed
     time.sleep(job.seconds)
     return {"key": job.key, "pid": os.getpid()}
 
