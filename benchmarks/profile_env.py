@@ -2,7 +2,9 @@
 
     pip install pyinstrument
     pyinstrument -i 0.0002 benchmarks/profile_env.py
+    pyinstrument -i 0.0002 benchmarks/profile_env.py --robots 96 --hours 0.25
 
+The run is the one `benchmarks/throughput.py` times (`agents.studies.throughput.profile_run`).
 What the profiles taught (before / after issue 5, in `results/profile/`): the physics step was a
 small part of a tick; reading each body's position and setting each body's velocity through
 pymunk's Python attributes cost more than the step itself, followed by the controller call's
@@ -10,13 +12,19 @@ argument conversions. Batched I/O over numpy buffers and one fused post-step che
 of that. The one-off cost left is numba's start-up (about 1 s per process, cached code included).
 """
 
-import numpy as np
+from __future__ import annotations
 
-import tavc_env
+from collections.abc import Sequence
 
-env = tavc_env.parallel_env(preset="dahl2004", max_sim_time_s=7200, max_cycles=10**9)
-obs, infos = env.reset(seed=0)
-rng = np.random.default_rng(0)
-while env.agents:
-    actions = {a: int(rng.integers(2)) for a in env.agents if infos[a]["action_required"]}
-    obs, rewards, terminations, truncations, infos = env.step(actions)
+from agents.studies import throughput as study
+from agents.studies.common import parse_settings
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    settings = parse_settings(study.ProfileSettings, argv, __doc__ or "")
+    print(study.profile_run(settings))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

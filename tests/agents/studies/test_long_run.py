@@ -7,14 +7,24 @@ Gap bound: measured on seeds 0-2 of this run, the longest time between two compl
 robot was 159-177 s (median about 95 s; a task alone takes 60-75 s, and a robot can wait behind
 all five others at a source with 20 s loading each). 600 s is more than three times the longest
 measured gap, and a robot stuck for good would exceed it within the run.
+
+The study `agents.studies.long_run` (benchmarks/long_run.py) checks the same at length; a quick
+run of it passes, and the same run judged with a one-minute limit fails.
 """
 
 from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import tavc_env
+from agents.studies import long_run as study
 from tests.helpers import pairwise_min_distance, run_env
 
 DURATION_S = 1.5 * 3600
@@ -53,3 +63,41 @@ def test_random_choices_for_one_and_a_half_hours_keep_everyone_working() -> None
     assert per_circuit.min() >= 0.3 * per_circuit.sum()
     # the final info agrees with what was counted step by step
     assert [run.last.infos[a]["completed_tasks"] for a in env.possible_agents] == completed.tolist()
+
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def test_recorded_settings_are_those_of_the_committed_report() -> None:
+    committed = json.loads((ROOT / "benchmarks" / "results" / "long_run.json").read_text())
+    assert study.Settings().recorded() == committed["metadata"]["settings"]
+    assert study.RUNS.key(study.LongRun(2, 15.0, "x")) == "seed2_15h"
+
+
+def test_bad_settings_are_refused() -> None:
+    with pytest.raises(ValueError, match=r"^max_gap_min = 0\.0 is invalid; allowed: > 0"):
+        study.Settings(max_gap_min=0.0)
+
+
+def test_quick_run_passes_and_a_tight_limit_fails(tmp_path: Path) -> None:
+    command = [sys.executable, "benchmarks/long_run.py", "--quick", "--quiet", "--workers", "1"]
+    command += ["--out", str(tmp_path)]
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("- **PASS**: longest gap")
+    summary = json.loads((tmp_path / "long_run.json").read_text())["summary"]
+    seed = summary["per_seed"][0]
+    assert seed["monitored_ticks"] == seed["ticks"] == 9000  # every tick of 0.25 h watched
+    assert 0.40 < summary["min_center_distance_m"] < 1.0
+    assert summary["capped_steps"] == 0 and summary["longest_gap"]["longest_gap_s"] < 600
+    with open(tmp_path / "long_run_tasks_seed0.csv", encoding="utf-8") as fh:
+        tasks = list(csv.DictReader(fh))
+    with open(tmp_path / "long_run.csv", encoding="utf-8") as fh:
+        robots = list(csv.DictReader(fh))
+    assert len(robots) == 6 and sum(int(r["tasks"]) for r in robots) == len(tasks) > 30
+    # The same seed with a 1-minute limit (resumed from the saved run): a robot waited longer.
+    tight = subprocess.run(
+        [*command, "--max-gap-min", "1"], cwd=ROOT, capture_output=True, text=True, timeout=60
+    )
+    assert tight.returncode == 1
+    assert "FAIL: robot" in tight.stderr and "- **FAIL**" in tight.stdout
