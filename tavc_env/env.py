@@ -32,7 +32,7 @@ from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, make_config
-from tavc_env.engine.simulation import Advance, ArenaSnapshot, Simulation
+from tavc_env.engine.simulation import JAM_WINDOW_S, Advance, ArenaSnapshot, Simulation
 from tavc_env.engine.tasks import PHASE_NAMES, Phase
 
 ENV_NAME = "tavc_arena_v0"
@@ -53,6 +53,9 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         decision_interval_s: None for event-driven stepping, else the fixed simulated time per step.
         reward_time_unit: "ms" (default, the paper's scale) or "s" for t in `w / t`.
         step_cap_s: event-driven steps return after at most this much simulated time.
+        jam_window_s: the jam detector's window: no task event for this long while no moving
+            robot gets 1 m from where it was is a jam, reported as `jammed` in every info
+            (math.inf: off).
         **overrides: fields of `ArenaConfig` (and the shorthands `speeds`, `values`).
     """
 
@@ -73,6 +76,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         decision_interval_s: float | None = None,
         reward_time_unit: str = "ms",
         step_cap_s: float = 600.0,
+        jam_window_s: float = JAM_WINDOW_S,
         **overrides: Any,
     ) -> None:
         self.config = make_config(preset, config, **overrides)
@@ -160,7 +164,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             low[i * per_robot + 2 : i * per_robot + 6] = -1.0
         self.state_space = spaces.Box(low, high, (size,), np.float32)
 
-        self.sim = Simulation(self.config)
+        self.sim = Simulation(self.config, jam_window_s=jam_window_s)
         self._rng: np.random.Generator | None = None
         self.num_cycles = 0
         self._last_task_time: list[float | None] = [None] * n
@@ -290,6 +294,16 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         return self.sim.time_s
 
     @property
+    def jams(self) -> int:
+        """Jams the detector found since `reset` (see `jam_window_s`)."""
+        return self.sim.jams
+
+    @property
+    def time_jammed_s(self) -> float:
+        """Simulated time spent jammed since `reset`."""
+        return self.sim.time_jammed_s
+
+    @property
     def escapes(self) -> int:
         """Escape manoeuvres of stuck robots since `reset` (see `tavc_env.engine.navigation`)."""
         return self.sim.escapes
@@ -394,6 +408,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         tasks = self.sim.tasks
         now = self.sim.time_s
         deciding = tasks.needs_decision()
+        jammed = bool(self.sim.jammed)
         infos: dict[str, dict[str, Any]] = {}
         for agent in self.agents:
             i = self._index[agent]
@@ -407,6 +422,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
                 "elapsed_s": float(now - tasks.decision_time[i]),
                 "sim_time_s": float(now),
                 "completed_tasks": int(tasks.completed[i]),
+                "jammed": jammed,
             }
         return infos
 

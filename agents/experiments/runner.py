@@ -153,6 +153,8 @@ class TrialResult:
     learner_stats: dict[str, dict[str, Any]] = field(default_factory=dict)
     capped_steps: int = 0
     escapes: int = 0  # stuck robots' escape manoeuvres (navigation.STUCK_PATIENCE_S)
+    jams: int = 0  # jams the engine's detector found (see tavc_env.engine.simulation)
+    jammed_s: float = 0.0  # simulated time spent jammed
     steps: int = 0
     wall_s: float = 0.0
     spec: dict[str, Any] = field(default_factory=dict)  # the sweep's TrialSpec, when run by one
@@ -321,6 +323,8 @@ def run_trial(
             on_step(env)
     result.end_s = env.sim_time_s
     result.escapes = env.escapes
+    result.jams = env.jams
+    result.jammed_s = env.time_jammed_s
     _snapshot(result, table, result.end_s)
     for agent in agents:
         stats = _learner_stats(table[agent])

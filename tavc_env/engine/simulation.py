@@ -48,10 +48,14 @@ class ScheduleEntry(NamedTuple):
     repair_after_s: float = -1.0
 
 
+JAM_WINDOW_S = 600.0  # default: ten typical tasks of the shipped arenas without any progress
+JAM_MOTION_M = 1.0  # ... while no moving robot got this far from where the window began
+
+
 class EngineEvent(NamedTuple):
     """Something that happened during a tick, as handed to observers: `kind` is one of
-    "completion", "breakdown", "repair" or "escape"; `circuit` and `task_time_s` are set for a
-    completion only."""
+    "completion", "breakdown", "repair", "escape" or "jam"; `circuit` and `task_time_s` are set
+    for a completion only."""
 
     time_s: float
     kind: str
@@ -104,8 +108,14 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 class Simulation:
     """One arena in motion. Call `reset(rng)` before use; `rng` drives every random draw."""
 
-    def __init__(self, config: ArenaConfig) -> None:
+    def __init__(self, config: ArenaConfig, jam_window_s: float = JAM_WINDOW_S) -> None:
+        """`jam_window_s`: the jam detector's window (see `jammed`); math.inf turns it off."""
+        if not (isinstance(jam_window_s, (int, float)) and jam_window_s > 0):
+            raise ValueError(
+                f"jam_window_s = {jam_window_s!r} is invalid; allowed: a time > 0 s (math.inf: off)"
+            )
         self.config = config
+        self.jam_window_s = float(jam_window_s)
         self.world = World(config)
         self.nav = Navigator(config)
         self.tasks = TaskCycle(config)
@@ -134,6 +144,7 @@ class Simulation:
         self._escape_until = np.zeros(n)  # end of a robot's escape manoeuvre (0: none)
         self._escape_target = np.zeros((n, 2))
         self.escapes = 0  # escape manoeuvres started since reset
+        self._reset_jam_watch()
         self.time_s = 0.0
         self.ticks = 0
         self._rng: np.random.Generator | None = None
@@ -182,6 +193,7 @@ class Simulation:
         self._anchor_time = np.zeros(n)
         self._escape_until = np.zeros(n)
         self.escapes = 0
+        self._reset_jam_watch()
         self.heading = rng.uniform(-math.pi, math.pi, size=n)
         self.speed_factor = np.ones(n)
         self.top_speed = self.speeds.copy()
@@ -352,6 +364,9 @@ class Simulation:
             self._escape(int(self._stalled[k]), now)
         if services_due or n_arrived or schedule_due:
             self._next_service = float(tasks.service_until.min())
+            self._progress(now)
+        elif now - self._progress_s >= self.jam_window_s:
+            self._check_jam(now)
         if self._observers:
             self._notify(out, marks)
 
@@ -366,6 +381,8 @@ class Simulation:
         if self.escapes > marks[3]:
             started = np.flatnonzero(self._escape_until == now + ESCAPE_TIME_S)
             events += [EngineEvent(now, "escape", int(r)) for r in started]
+        if self.jam_started_s == now:
+            events.append(EngineEvent(now, "jam", -1))
         for observer in self._observers:
             observer.on_tick(self, events)
 
@@ -405,6 +422,44 @@ class Simulation:
             elif self.tasks.phase[robot] == Phase.BROKEN:
                 self.repair(robot)
                 out.repaired.append(robot)
+
+    # -- liveness ------------------------------------------------------------------------------
+    def _reset_jam_watch(self) -> None:
+        self._progress_s = 0.0  # time of the last task event (arrival, service end, repair ...)
+        self._progress_pos = self._pos.copy()  # where every robot stood then
+        self.jammed = False
+        self.jams = 0  # jams detected since reset
+        self.jammed_s = 0.0  # simulated time spent jammed since reset
+        self.jam_started_s = -1.0
+
+    def _progress(self, now: float) -> None:
+        if self.jammed:
+            self.jammed = False
+            self.jammed_s += now - self.jam_started_s
+        self._progress_s = now
+        self._progress_pos = self._pos.copy()
+
+    def _check_jam(self, now: float) -> None:
+        """No task event for `jam_window_s`: a jam if no moving robot got `JAM_MOTION_M` away
+        from where it stood when the window began (a long, free leg is not a jam). A jam lasts
+        until the next task event; a window that ends in motion starts a new one."""
+        moving = self.tasks.moving & self.world.in_space
+        travelled = np.hypot(*(self._pos - self._progress_pos).T)
+        if moving.any() and not (travelled[moving] >= JAM_MOTION_M).any():
+            if not self.jammed:
+                self.jammed = True
+                self.jams += 1
+                self.jam_started_s = now
+        elif self.jammed:
+            self.jammed_s += now - self.jam_started_s
+            self.jammed = False
+        self._progress_s = now  # look again one window on
+        self._progress_pos = self._pos.copy()
+
+    @property
+    def time_jammed_s(self) -> float:
+        """Simulated time spent jammed since reset (the current jam included)."""
+        return self.jammed_s + (self.time_s - self.jam_started_s if self.jammed else 0.0)
 
     # -- instrumentation -----------------------------------------------------------------------
     def add_observer(self, observer: Observer) -> None:
