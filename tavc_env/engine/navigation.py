@@ -29,10 +29,36 @@ import numpy as np
 from tavc_env.config import ArenaConfig
 
 try:
+    import os as _os
+    import warnings as _warnings
+
     from numba import njit as _njit
+    from numba.core import config as _numba_config
+
+    _cache_warned: list[str] = []
 
     def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
-        return _njit(cache=True, fastmath=False, nogil=True)(fn)
+        """numba's compiled `fn`, cached on disk; where no cache folder can be written (a
+        read-only install run by another user), compiled at every start, with one warning."""
+        try:
+            return _njit(cache=True, fastmath=False, nogil=True)(fn)
+        except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
+            if "no locator" not in str(error):
+                raise
+        if not _cache_warned:
+            folders = [_os.path.join(_os.path.dirname(fn.__code__.co_filename), "__pycache__")]
+            user_folder = getattr(_numba_config, "CACHE_DIR", "")  # NUMBA_CACHE_DIR
+            if user_folder:
+                folders.insert(0, user_folder)
+            _cache_warned.append(folders[0])
+            _warnings.warn(
+                f"numba cannot write its cache (tried {' and '.join(folders)} and the user's "
+                "cache folder): the robots' controller is compiled anew at every start (a few "
+                "seconds); set NUMBA_CACHE_DIR to a writable folder to cache it",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        return _njit(cache=False, fastmath=False, nogil=True)(fn)
 
 except ImportError:  # pragma: no cover - numba is a dependency; this keeps a broken install usable
 
