@@ -139,7 +139,8 @@ def summary(result: TrialResult, allocator: str) -> str:
         members = [i for i, c in enumerate(result.speed_classes) if c == cls]
         row = [float(np.mean([s[i] for i in members])) for s in shares]
         lines.append(f"    {cls:>8} robots ({len(members)}): " + "  ".join(f"{x:.2f}" for x in row))
-    lines.append(f"  wall time {result.wall_s:.1f} s; escapes {result.escapes}")
+    jams = f"{result.jams} ({result.jammed_s / 60:.0f} min jammed)" if result.jams else "none"
+    lines.append(f"  wall time {result.wall_s:.1f} s; escapes {result.escapes}; jams {jams}")
     return "\n".join(lines)
 
 
