@@ -15,11 +15,33 @@ Robots that do not have to decide may be given any action (or none): it is ignor
 has to decide must be given a valid action, or `step` raises a ValueError and changes nothing. In
 the AEC view (`env()`), the agent that is given a bad action gets the ValueError at once, and the
 env is left as it was.
+
+## Copying
+
+`copy.deepcopy(env)` and `pickle` of an env (before `reset`, or at any point of an episode) give an
+env whose future is the original's, bit for bit: same observations, rewards, infos and positions for
+the same actions. The copy does not copy the physics world: it rebuilds it by replaying the episode
+from its `reset` (the generator as it was then, and every decision, breakdown, repair and value
+change since, in order), and checks that the rebuilt arena equals the original before returning.
+Copying therefore takes about as long as simulating the episode so far did. It has to: pymunk's
+own copy of a space carries positions, velocities and cached contacts, but not the bodies' bias
+velocities (the pushes that separate robots that touched in the last tick) nor the state of its
+spatial index (which decides the order in which simultaneous contacts are solved), so a copy of
+the world itself taken just after a contact drifted from the original by millimetres in its first
+tick (tests/tavc_env/test_copy.py). Observers attached with `env.sim.add_observer` are copied
+along (they do not see the replayed ticks). Copying `env.sim` on its own is exact in the same way;
+a `Simulation` driven directly (not by an env) after its `reset`, or one changed behind its env's
+back, cannot be copied: that raises a ValueError saying so.
 """
 
 from __future__ import annotations
 
+import copy
+import copyreg
+import hashlib
 import math
+import weakref
+from array import array
 from typing import Any, ClassVar
 
 import numpy as np
@@ -57,6 +79,9 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             robot gets 1 m from where it was is a jam, reported as `jammed` in every info
             (math.inf: off).
         **overrides: fields of `ArenaConfig` (and the shorthands `speeds`, `values`).
+
+    `copy.deepcopy` and `pickle` of the env are exact at any point of an episode: they rebuild
+    the arena by replaying the episode from its reset (see "Copying" in the module's docstring).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -166,6 +191,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
 
         self.sim = Simulation(self.config, jam_window_s=jam_window_s)
         self._rng: np.random.Generator | None = None
+        self._history: _History | None = None  # what was done to the arena since reset
         self.num_cycles = 0
         self._last_task_time: list[float | None] = [None] * n
         # deliveries since reset, each counting w_i / max w (the paper's measure, summed)
@@ -190,7 +216,9 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         )
         if seed is not None or self._rng is None:
             self._rng, _ = seeding.np_random(None if seed is None else int(seed))
+        self._history = _History(copy.deepcopy(self._rng))
         self.sim.reset(self._rng)
+        _HISTORIES[self.sim] = self._history
         self.agents = self.possible_agents[:]
         self.num_cycles = 0
         self._last_task_time = [None] * self.config.n_robots
@@ -209,14 +237,18 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         if not self.agents:
             raise ValueError("step() called on a finished episode; call reset() first")
         choices = self._validate(actions)
+        history = self._recorder()
         for i, circuit in choices:
             self.sim.choose(i, circuit)
+            history.choose(i, circuit)
 
         remaining = self.max_sim_time_s - self.sim.time_s
         if self.decision_interval_s is None:
-            out = self.sim.advance(min(self.step_cap_s, remaining), stop_on_decision=True)
+            duration, stop = min(self.step_cap_s, remaining), True
         else:
-            out = self.sim.advance(min(self.decision_interval_s, remaining), stop_on_decision=False)
+            duration, stop = min(self.decision_interval_s, remaining), False
+        out = self.sim.advance(duration, stop_on_decision=stop)
+        history.advance(duration, stop)
         rewards = self._rewards(out)
         self.num_cycles += 1
         truncated = (
@@ -278,14 +310,19 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
     def break_down(self, agent: str) -> None:
         """Robot `agent` breaks down now: it stops, leaves its line or dock, abandons its task and is
         taken off the floor until repaired. It stays in `agents` with `action_required` False."""
-        self.sim.break_down(self._agent_index(agent, "agent")[0])
+        i = self._agent_index(agent, "agent")[0]
+        history = self._recorder()
+        self.sim.break_down(i)
+        history.break_down(i)
 
     def repair(self, agent: str) -> None:
         """Repair robot `agent`: it returns to the floor in the next step, which ends with it
         deciding (a decision epoch, like a scheduled repair)."""
         i, name = self._agent_index(agent, "agent")
         require(self.sim.broken()[i], "agent", name, "a robot that is broken")
+        history = self._recorder()
         self.sim.schedule_repair(i)
+        history.repair(i)
 
     # -- read-only views of the arena ----------------------------------------------------------
     @property
@@ -328,7 +365,31 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             and all(is_number(w) and w > 0 for w in values)
         )
         require(ok, "circuit values", values, f"a sequence of {m} finite values > 0")
-        self.sim.set_circuit_values(np.array([float(w) for w in values]))
+        new_values = tuple(float(w) for w in values)
+        history = self._recorder()
+        self.sim.set_circuit_values(np.array(new_values))
+        history.set_values(new_values)
+
+    # -- copying (see the module's docstring) --------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_renderer"] = None  # a window or a pygame surface; drawn anew on the next render()
+        state["_rng"] = self._rng is not None  # the rebuilt arena's own generator (__setstate__)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        # `sim` was rebuilt by replay (`_rebuild_simulation`): its generator is the env's
+        self._rng = self.sim.rng if state["_rng"] else None
+
+    def _recorder(self) -> _History:
+        """The history of this episode, or a ValueError if the env was never reset."""
+        if self._history is None or _HISTORIES.get(self.sim) is not self._history:
+            raise ValueError(
+                "the arena was used before reset() (or its simulation was replaced); "
+                "allowed: call reset() first"
+            )
+        return self._history
 
     # -- helpers -------------------------------------------------------------------------------
     def _agent_index(self, agent: object, what: str) -> tuple[int, str]:
@@ -470,3 +531,170 @@ def env(**kwargs: Any) -> AECEnv[str, dict[str, np.ndarray], int | None]:
     """The arena as a PettingZoo AEC env: PettingZoo's conversion of the parallel env, with each
     action checked when it is given (see `AecArenaEnv`)."""
     return OrderEnforcingWrapper(AecArenaEnv(parallel_env(**kwargs)))
+
+
+# -- copying an arena: rebuild by replay (see the module's docstring) --------------------------------
+class _History:
+    """What an env did to its arena since `reset`: the generator as it was just before the reset
+    and every call that changed the arena since, in order. Enough to rebuild the arena exactly
+    (`_rebuild_simulation`). Compact: three integers per call, runs of equal `advance` calls
+    (fixed-interval stepping) counted in one entry."""
+
+    CHOOSE, ADVANCE, BREAK_DOWN, REPAIR, VALUES = range(5)
+
+    def __init__(self, start_rng: np.random.Generator) -> None:
+        self.start_rng = start_rng
+        self.ops = array("q")  # (code, a, b): CHOOSE robot circuit, ADVANCE stop count, ...
+        self.durations = array("d")  # the duration of each ADVANCE entry
+        self.values: list[tuple[float, ...]] = []  # the values of each VALUES entry
+
+    def choose(self, robot: int, circuit: int) -> None:
+        self.ops.extend((self.CHOOSE, robot, circuit))
+
+    def advance(self, duration: float, stop_on_decision: bool) -> None:
+        ops = self.ops
+        if (
+            len(ops) >= 3
+            and ops[-3] == self.ADVANCE
+            and ops[-2] == stop_on_decision
+            and self.durations[-1] == duration
+        ):
+            ops[-1] += 1
+        else:
+            ops.extend((self.ADVANCE, int(stop_on_decision), 1))
+            self.durations.append(duration)
+
+    def break_down(self, robot: int) -> None:
+        self.ops.extend((self.BREAK_DOWN, robot, 0))
+
+    def repair(self, robot: int) -> None:
+        self.ops.extend((self.REPAIR, robot, 0))
+
+    def set_values(self, values: tuple[float, ...]) -> None:
+        self.ops.extend((self.VALUES, len(self.values), 0))
+        self.values.append(values)
+
+    def replay(self, sim: Simulation) -> None:
+        """Do it all again to `sim`, which was just reset with a copy of `start_rng`."""
+        ops, advances = self.ops, iter(self.durations)
+        for k in range(0, len(ops), 3):
+            code, a, b = ops[k], ops[k + 1], ops[k + 2]
+            if code == self.CHOOSE:
+                sim.choose(a, b)
+            elif code == self.ADVANCE:
+                duration = next(advances)
+                for _ in range(b):
+                    sim.advance(duration, stop_on_decision=bool(a))
+            elif code == self.BREAK_DOWN:
+                sim.break_down(a)
+            elif code == self.REPAIR:
+                sim.schedule_repair(a)
+            else:
+                sim.set_circuit_values(np.array(self.values[a]))
+
+
+# The history of every arena an env drives, by arena (a registry rather than an attribute, so the
+# engine knows nothing of it; an arena forgotten by everyone else leaves it).
+_HISTORIES: weakref.WeakKeyDictionary[Simulation, _History] = weakref.WeakKeyDictionary()
+# Attributes of a Simulation that are not its state: code, caches of other attributes, links.
+_NOT_STATE = frozenset(
+    {"config", "world", "_rng", "_observers", "_steer", "_steer_args", "_steer_extra", "_bound"}
+)
+
+
+def _arena_digest(sim: Simulation) -> str:
+    """A digest of everything a simulation's future depends on: its generator, the robots' bodies
+    (positions, velocities, on the floor or not) and every other attribute, walked generically so
+    that state added to the engine later is covered too."""
+    h = hashlib.blake2b(digest_size=20)
+    world = sim.world
+    for part in (world.positions(), world.velocities(), world.in_space):
+        _feed(h, part, set())
+    _feed(h, sim.rng, set())
+    seen: set[int] = set()
+    for name, value in sorted(vars(sim).items()):
+        if name not in _NOT_STATE:
+            h.update(name.encode())
+            _feed(h, value, seen)
+    return h.hexdigest()
+
+
+def _feed(h: Any, value: object, seen: set[int]) -> None:
+    if isinstance(value, np.ndarray):
+        h.update(f"array{value.dtype.str}{value.shape}".encode())
+        h.update(np.ascontiguousarray(value).tobytes())
+    elif isinstance(value, np.random.Generator):
+        _feed(h, value.bit_generator.state, seen)
+    elif value is None or isinstance(value, (bool, int, float, str, bytes, np.generic)):
+        h.update(repr(value).encode())  # repr of a float is exact
+    elif isinstance(value, dict):
+        h.update(b"{")
+        for key in sorted(value, key=repr):
+            _feed(h, key, seen)
+            _feed(h, value[key], seen)
+    elif isinstance(value, (list, tuple)):
+        h.update(f"({len(value)}".encode())
+        for item in value:
+            _feed(h, item, seen)
+    elif callable(value) or id(value) in seen:
+        pass  # compiled functions; an object already fed
+    elif hasattr(value, "__dict__"):
+        seen.add(id(value))
+        h.update(type(value).__name__.encode())
+        for name, item in sorted(vars(value).items()):
+            if name != "config":
+                h.update(name.encode())
+                _feed(h, item, seen)
+    else:
+        h.update(repr(value).encode())
+
+
+def _reduce_simulation(sim: Simulation) -> tuple[Any, ...]:
+    """How `copy` and `pickle` take a Simulation: rebuilt from its config by replaying its history;
+    observers restored after the replay (so they see none of it)."""
+    history = _HISTORIES.get(sim)
+    if history is None and _was_reset(sim):  # (never reset: a new one is the same)
+        raise ValueError(
+            "this Simulation cannot be copied or pickled: it was reset and driven directly, "
+            "not by a tavc_env env, so there is no record of what was done to it, and "
+            "pymunk's own copy of its physics world is not exact (it drops the bias "
+            "velocities that separate robots after a contact, and the order in which "
+            "contacts are solved); allowed: copy the env that drives it (copy.deepcopy(env), "
+            "pickle), copy it before reset(), or build a new Simulation and reset it with a "
+            "copy of the generator"
+        )
+    digest = "" if history is None else _arena_digest(sim)
+    observers = list(getattr(sim, "_observers", []))
+    return (
+        _rebuild_simulation,
+        (sim.config, sim.jam_window_s, history, digest),
+        {"_observers": observers},
+    )
+
+
+def _was_reset(sim: Simulation) -> bool:
+    try:
+        return sim.rng is not None
+    except ValueError:  # "no random generator yet"
+        return False
+
+
+def _rebuild_simulation(
+    config: ArenaConfig, jam_window_s: float, history: _History | None, digest: str
+) -> Simulation:
+    sim = Simulation(config, jam_window_s=jam_window_s)
+    if history is not None:
+        sim.reset(copy.deepcopy(history.start_rng))
+        history.replay(sim)
+        if _arena_digest(sim) != digest:
+            raise ValueError(
+                "this arena cannot be copied: replaying its episode from reset did not give the "
+                "arena it copies, so it was changed other than through its env (e.g. through "
+                "env.sim directly: choose, advance, break_down, reset); allowed: drive the arena "
+                "through the env's reset, step, break_down, repair and set_circuit_values only"
+            )
+        _HISTORIES[sim] = history
+    return sim
+
+
+copyreg.pickle(Simulation, _reduce_simulation)

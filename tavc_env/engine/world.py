@@ -91,16 +91,16 @@ class World:
         self._space_ptr = self.space._space
 
     def __getstate__(self) -> dict[str, object]:
-        # pymunk's batch buffers are C data: not picklable; rebuilt on unpickling
-        state = self.__dict__.copy()
-        for key in ("_get", "_set", "_get_args", "_set_args", "_space_ptr", "pos"):
-            del state[key]
-        return state
-
-    def __setstate__(self, state: dict[str, object]) -> None:
-        self.__dict__.update(state)
-        self._bind_batch()
-        self._reindex()  # bodies are new C objects: find their slots again
+        # Not `copy` nor `pickle`: pymunk's copy of a space keeps positions, velocities and cached
+        # contacts, but not the bodies' bias velocities (the push that separates two robots that
+        # touched in the last step) nor its spatial index, whose order decides in which order
+        # contacts are solved; a copy drifts from the original at the next contact. An env
+        # copies its arena by replaying the episode instead (tavc_env.env, "Copying").
+        raise ValueError(
+            "a physics World cannot be copied or pickled exactly (pymunk does not carry the bias "
+            "velocities of bodies that touched, nor the order of contacts); allowed: copy the env "
+            "(copy.deepcopy(env) or pickle), which rebuilds its arena by replaying its episode"
+        )
 
     def _reindex(self) -> None:
         """Find each robot's slot in the batch order (after bodies enter or leave the space)."""
