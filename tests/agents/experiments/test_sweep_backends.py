@@ -66,12 +66,17 @@ def test_killed_sweep_resumes_without_losing_or_repeating(
     )
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline:
-        if out.exists() and any(p.suffix == ".json" for p in out.iterdir()):
+        if out.exists() and any(
+            p.suffix == ".json" and not p.name.startswith(".") for p in out.iterdir()
+        ):
             break
         time.sleep(0.05)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
-    finished = sorted(p.stem for p in out.iterdir() if p.suffix == ".json")
+    # a write the kill cut short leaves only a hidden temporary file, never a result
+    finished = sorted(
+        p.stem for p in out.iterdir() if p.suffix == ".json" and not p.name.startswith(".")
+    )
     assert 1 <= len(finished) < 4, "the kill must land mid-sweep"
     # no partial file ever stands in for a result
     for key in finished:
