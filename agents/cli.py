@@ -243,7 +243,7 @@ def _run_study(name: str, argv: Sequence[str]) -> int:
     settings = parse_settings(module.Settings, argv, module.__doc__ or name)
     outcome = module.run(settings)
     print(outcome.text)
-    return 0
+    return 1 if getattr(outcome, "failed", None) else 0  # e.g. a long run that found a gap
 
 
 def parser() -> argparse.ArgumentParser:
