@@ -144,7 +144,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
                 else f"an interval {resolved}",
             )
         require(
-            reward_time_unit in TIME_UNITS,
+            isinstance(reward_time_unit, str) and reward_time_unit in TIME_UNITS,
             "reward_time_unit",
             reward_time_unit,
             str(list(TIME_UNITS)),
@@ -154,6 +154,12 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             "step_cap_s",
             step_cap_s,
             f"a finite time >= one physics step ({dt} s) and {resolved}",
+        )
+        require(
+            jam_window_s == math.inf or (is_number(jam_window_s) and jam_window_s > 0),
+            "jam_window_s",
+            jam_window_s,
+            "a time > 0 s, or math.inf (no jam detection)",
         )
         self.render_mode = render_mode
         self.max_cycles = int(max_cycles)
@@ -189,7 +195,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             low[i * per_robot + 2 : i * per_robot + 6] = -1.0
         self.state_space = spaces.Box(low, high, (size,), np.float32)
 
-        self.sim = Simulation(self.config, jam_window_s=jam_window_s)
+        self.sim = Simulation(self.config, jam_window_s=float(jam_window_s))
         self._rng: np.random.Generator | None = None
         self._history: _History | None = None  # what was done to the arena since reset
         self.num_cycles = 0

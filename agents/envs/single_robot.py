@@ -34,6 +34,18 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
         **env_kwargs: Any,
     ) -> None:
         require(is_number(episode_s) and episode_s > 0, "episode_s", episode_s, "a duration > 0 s")
+        require(
+            "max_sim_time_s" not in env_kwargs,
+            "max_sim_time_s",
+            env_kwargs.get("max_sim_time_s"),
+            "not given (set from episode_s: an episode lasts episode_s simulated seconds)",
+        )
+        require(
+            others is None or callable(others),
+            "others",
+            others,
+            "None (softmax TAVC) or a function from an agent name to its Policy",
+        )
         self.env = tavc_env.parallel_env(max_sim_time_s=float(episode_s), **env_kwargs)
         require(robot in self.env.possible_agents, "robot", robot, str(self.env.possible_agents))
         self.robot = robot

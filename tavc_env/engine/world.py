@@ -102,6 +102,23 @@ class World:
             "(copy.deepcopy(env) or pickle), which rebuilds its arena by replaying its episode"
         )
 
+    def __del__(self) -> None:
+        # A World dies by reference count (an env's reset replaces it), and its space's C memory
+        # with it, at once; pymunk's bodies and shapes live in reference cycles and wait for the
+        # garbage collector. pymunk frees a space by walking the bodies still in it, and a
+        # collection during that walk (any allocation may start one) frees bodies the walk is
+        # about to visit: a crash (a use after free in cpSpaceRemoveBody, found by
+        # tests/fuzz). So everything leaves the space first, and the walk finds nothing.
+        try:
+            space = self.space
+            robots = [i for i in range(len(self.bodies)) if self.in_space[i]]
+            space.remove(*self.walls, *(self.shapes[i] for i in robots))
+            space.remove(*(self.bodies[i] for i in robots))
+            # pymunk adds its static body (the walls') to the C space only: take it out there
+            _lib.cpSpaceRemoveBody(self._space_ptr, space.static_body._body)
+        except Exception:  # a World that failed half-way through __init__, interpreter exit
+            pass
+
     def _reindex(self) -> None:
         """Find each robot's slot in the batch order (after bodies enter or leave the space)."""
         self._get.clear()

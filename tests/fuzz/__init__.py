@@ -1,0 +1,17 @@
+"""The fuzzing harness (issue 12, item 7): hypothesis strategies over arena configurations, action
+streams, seeds and stored trial files, checked against the package's promises:
+
+* a valid configuration runs an episode without a Python exception and without two robots (or a
+  robot and a wall) overlapping by more than a tenth of the robot radius;
+* an invalid one raises a ValueError whose message names the offending field;
+* a bad action or seed raises a ValueError naming it and changes nothing; the AEC view and the
+  parallel view agree step for step on the same actions;
+* a truncated, garbled or edited trial file raises `CorruptFileError` (a ValueError) naming the
+  file, and a resumed sweep runs that trial again; no trial file is lost or left half-written.
+
+Two profiles (tests/fuzz/conftest.py): the default runs a few hundred examples in all, the same
+ones every time, as part of the normal test run; the long one draws 25 times as many, fresh each
+run (failures are replayed from .hypothesis/tavc-fuzz):
+
+    TAVC_FUZZ=long python -m pytest tests/fuzz -n 2 -q
+"""
