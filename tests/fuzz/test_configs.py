@@ -61,7 +61,7 @@ class OverlapWatch:
             self.deepest, self.at = depth, sim.time_s
 
 
-@fuzz_settings(60)
+@fuzz_settings(50)
 @given(
     config=valid_config(),
     seed=st.integers(0, 2**32 - 1),
@@ -92,7 +92,7 @@ def test_a_valid_config_runs_without_error_or_overlap(
     )
 
 
-@fuzz_settings(60)
+@fuzz_settings(40)
 @given(fields=arena_fields())
 def test_every_drawn_config_is_accepted_or_refused_naming_a_field(fields: dict[str, Any]) -> None:
     try:
@@ -101,7 +101,7 @@ def test_every_drawn_config_is_accepted_or_refused_naming_a_field(fields: dict[s
         assert names_a_field(error), str(error)
 
 
-@fuzz_settings(80)
+@fuzz_settings(60)
 @given(config=valid_config(), field=st.sampled_from(sorted(INVALID_VALUES)), data=st.data())
 def test_an_invalid_field_is_refused_naming_it(
     config: ArenaConfig, field: str, data: st.DataObject
@@ -119,7 +119,7 @@ def test_an_invalid_field_is_refused_naming_it(
         assert re.match(rf"{re.escape(field)}\b", named(caught.value)), str(caught.value)
 
 
-@fuzz_settings(40)
+@fuzz_settings(30)
 @given(kind=st.sampled_from(sorted(NESTED)), data=st.data())
 def test_an_invalid_circuit_robot_or_breakdown_is_refused_naming_its_field(
     kind: str, data: st.DataObject
@@ -143,7 +143,7 @@ ENV_ARGUMENTS: dict[str, st.SearchStrategy[Any]] = {
 }
 
 
-@fuzz_settings(60)
+@fuzz_settings(40)
 @given(argument=st.sampled_from(sorted(ENV_ARGUMENTS)), data=st.data())
 def test_env_arguments_are_accepted_or_refused_naming_them(
     argument: str, data: st.DataObject
@@ -161,7 +161,7 @@ def test_env_arguments_are_accepted_or_refused_naming_them(
     env.step({a: 0 for a in env.agents if infos[a]["action_required"]})
 
 
-@fuzz_settings(40)
+@fuzz_settings(30)
 @given(
     preset=st.one_of(
         st.text(max_size=12), st.integers(), st.none(), st.lists(st.text(max_size=2), max_size=2)
@@ -179,7 +179,7 @@ def test_make_config_refuses_unknown_presets_and_keys_naming_them(preset: Any, k
         tavc_env.make_config("dahl2004", **{key: 1.0})
 
 
-@fuzz_settings(40)
+@fuzz_settings(30)
 @given(
     speeds=st.one_of(
         st.lists(st.one_of(NOT_A_NUMBER, st.floats(-1.0, 0.0), st.floats(2.01, 1e9)), min_size=1),
