@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from tavc_env._validation import is_integer, is_number, require
-from tavc_env.layout import WALL_CLEARANCE_M, waiting_slots
+from tavc_env.layout import WALL_CLEARANCE_M, stack_rows, waiting_rows
 
 Point = tuple[float, float]
 MAX_SPEED_M_S = 2.0  # a Pioneer-sized robot; far above the 0.2-0.3 m/s of the paper
@@ -302,14 +302,15 @@ class ArenaConfig:
             f"{self.robot_radius} m in a {self.width} x {self.height} m arena (robots cannot fit)",
         )
 
-        for k, (name, _, _) in enumerate(self.stations()):
-            slots = self.waiting_slots(k, self.n_robots - 1)
+        room = [len(self.waiting_slots(k, self.n_robots - 1)) for k in range(len(self.stations()))]
+        for (name, _, _), held in zip(self.stations(), room):
             require(
-                len(slots) >= self.n_robots - 1,
+                held >= self.n_robots - 1,
                 f"{name} waiting line",
-                f"room for {len(slots)} robots",
-                f"room for all {self.n_robots - 1} robots that may wait there (a larger arena, "
-                "fewer robots, circuits further apart or another queue_direction)",
+                f"room for {held} robots",
+                f"room for all {self.n_robots - 1} robots that may wait there; the lines of this "
+                f"arena hold a team of at most {min(room) + 1} robots (or: a larger arena, "
+                "circuits further apart or another queue_direction)",
             )
 
     def _validate_envelope(self) -> None:
@@ -347,11 +348,12 @@ class ArenaConfig:
     def docks(self) -> list[Point]:
         return [dock for _, dock, _ in self.stations()]
 
-    def waiting_slots(self, station: int, count: int) -> np.ndarray:
-        """Up to `count` waiting positions of station `station` (index into `stations()`)."""
+    def waiting_rows(self, station: int, count: int) -> list[np.ndarray]:
+        """Up to `count` waiting positions of station `station` (index into `stations()`), row by
+        row in the order the line fills them (see `tavc_env.layout.waiting_rows`)."""
         _, dock, direction = self.stations()[station]
         others = [d for k, d in enumerate(self.docks()) if k != station]
-        return waiting_slots(
+        return waiting_rows(
             dock,
             direction,
             others,
@@ -362,6 +364,11 @@ class ArenaConfig:
             self.queue_spacing_m,
             count,
         )
+
+    def waiting_slots(self, station: int, count: int) -> np.ndarray:
+        """Up to `count` waiting positions of station `station`, nearest the head of the line
+        first."""
+        return stack_rows(self.waiting_rows(station, count))
 
     def replace(self, **changes: Any) -> ArenaConfig:
         """A copy with fields changed (validated again)."""

@@ -12,9 +12,12 @@ import numpy as np
 
 MAX_ROWS = 100
 WALL_CLEARANCE_M = 0.05  # a dock or waiting slot keeps a robot this far off the walls
+# Rows of a line stand this many slot spacings apart: every second lane is an aisle, so a robot
+# waiting in an inner row, or leaving the dock, always has a free lane to drive along.
+ROW_PITCH = 2
 
 
-def waiting_slots(
+def waiting_rows(
     dock: Sequence[float],
     direction: Sequence[float],
     other_docks: Sequence[Sequence[float]],
@@ -24,14 +27,16 @@ def waiting_slots(
     offset: float,
     spacing: float,
     count: int,
-) -> np.ndarray:
-    """Up to `count` waiting positions for one station, nearest the dock first.
+) -> list[np.ndarray]:
+    """Up to `count` waiting positions for one station, as rows in the order robots fill them.
 
     The first row runs from the dock along `direction` (first slot `offset` from the dock, then
     every `spacing`); where it would leave the arena or come within reach of another station, a new
-    row starts one spacing further toward the arena's interior. A slot is kept only if it is at
-    least `spacing` nearer its own dock than any other dock, so waiting robots of different
-    stations stay at least one spacing apart. Returns fewer than `count` slots if no more fit.
+    row starts `ROW_PITCH` spacings further toward the arena's interior, leaving an aisle between
+    rows. Rows snake: odd rows are filled from their far end back toward the dock, so the line is
+    one path and moving up is always one slot, never the width of the arena. A slot is kept only if
+    it is at least `spacing` nearer its own dock than any other dock, so waiting robots of
+    different stations stay at least one spacing apart. Fewer than `count` slots if no more fit.
     """
     margin = radius + WALL_CLEARANCE_M
     lo = np.array([margin, margin])
@@ -51,15 +56,30 @@ def waiting_slots(
         own = float(np.hypot(*(p - base)))
         return bool(np.all(np.hypot(*(others - p).T) >= own + spacing))
 
-    slots: list[np.ndarray] = []
+    rows: list[np.ndarray] = []
+    left = count
     for row in range(MAX_ROWS):
-        k = 0
-        while len(slots) < count:
-            p = base + along * (offset + k * spacing) + across * row * spacing
+        if left <= 0:
+            break
+        line: list[np.ndarray] = []
+        while True:
+            p = base + along * (offset + len(line) * spacing) + across * row * ROW_PITCH * spacing
             if not fits(p):
                 break
-            slots.append(p)
-            k += 1
-        if k == 0 or len(slots) >= count:
+            line.append(p)
+            # the first row is cut at `count`; a snaking row needs its whole length to know
+            # where it starts
+            if row == 0 and len(line) >= left:
+                break
+        if not line:
             break
-    return np.array(slots, dtype=float).reshape(-1, 2)
+        if row % 2 == 1:
+            line.reverse()
+        rows.append(np.array(line[:left], dtype=float).reshape(-1, 2))
+        left -= len(rows[-1])
+    return rows
+
+
+def stack_rows(rows: Sequence[np.ndarray]) -> np.ndarray:
+    """The slots of `waiting_rows` as one (k, 2) array, in the order the line fills them."""
+    return np.vstack(rows) if rows else np.zeros((0, 2))

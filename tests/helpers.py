@@ -48,11 +48,11 @@ PHASES = {"deciding", "to_source", "to_sink", "broken"}
 CONFIGS: dict[str, dict[str, Any]] = {
     "dahl2004": {"preset": "dahl2004"},
     "dahl2004_homogeneous": {"preset": "dahl2004_homogeneous"},
-    # Twelve robots need an 18 m arena: every waiting line must hold the 11 others (checked by
-    # the configuration's validation), and in 12 m the middle lines have room for only 8.
+    # Twelve robots need a 21 m arena: every waiting line must hold the 11 others (checked by
+    # the configuration's validation), and in 18 m the middle lines have room for only 10.
     "three_circuits_12_robots": {
-        "width": 18.0,
-        "circuits": tavc_env.lane_circuits(3, width=18.0, values=(2200.0, 2000.0, 1800.0)),
+        "width": 21.0,
+        "circuits": tavc_env.lane_circuits(3, width=21.0, values=(2200.0, 2000.0, 1800.0)),
         "speeds": [0.3] * 6 + [0.2] * 6,
     },
     "fixed_interval_30s": {"decision_interval_s": 30.0},

@@ -10,6 +10,13 @@ within `join_radius_m` of a station's dock joins its line: if the station is fre
 it drives onto the dock, otherwise it drives to the next free waiting slot beside the dock and waits
 there. When a robot's service ends it leaves, and the robot at the head of the line drives onto the
 dock. The line is first come first served and stands in space: waiting robots are obstacles.
+
+A line longer than its first row (the row along the wall from the dock) stands in several rows
+across the approach to the dock, and a robot driving at the dock would push into them. So while
+the next free slot lies beyond the first row, a robot heading for the station drives to that slot,
+the end of the line, and joins within `join_radius_m` of it; it is aimed again whenever the line
+grows or shrinks. Lines within their first row, all that the shipped six-robot arenas ever form,
+are approached at the dock as before.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tavc_env.config import ArenaConfig
+from tavc_env.layout import stack_rows
 
 
 class Phase(enum.IntEnum):
@@ -60,7 +68,8 @@ class Station:
     """A dock serving one robot at a time, with its line of waiting slots."""
 
     dock: np.ndarray
-    slots: np.ndarray  # (k, 2) waiting positions, nearest the dock first
+    slots: np.ndarray  # (k, 2) waiting positions, in the order the line fills them
+    first_row: int  # how many of `slots` stand in the first row, along the wall from the dock
     service_s: float
     occupant: int = -1
     line: list[int] = field(default_factory=list)
@@ -83,14 +92,17 @@ class TaskCycle:
         self.config = config
         n = config.n_robots
         # Station k is the source (k even) or sink (k odd) of circuit k // 2.
-        self.stations = [
-            Station(
-                dock=np.array(dock, dtype=float),
-                slots=config.waiting_slots(k, max(n - 1, 1)),
-                service_s=config.source_service_s if k % 2 == 0 else config.sink_service_s,
+        self.stations = []
+        for k, (_, dock, _) in enumerate(config.stations()):
+            rows = config.waiting_rows(k, max(n - 1, 1))
+            self.stations.append(
+                Station(
+                    dock=np.array(dock, dtype=float),
+                    slots=stack_rows(rows),
+                    first_row=len(rows[0]) if rows else 0,
+                    service_s=config.source_service_s if k % 2 == 0 else config.sink_service_s,
+                )
             )
-            for k, (_, dock, _) in enumerate(config.stations())
-        ]
         self.values = np.array([c.value for c in config.circuits], dtype=float)
         speeds = np.array([r.speed for r in config.robots], dtype=float)
         self.service_scale = (
@@ -143,8 +155,22 @@ class TaskCycle:
     def _travel_to(self, i: int, station: int) -> None:
         self.station[i] = station
         self._set_mode(i, Mode.TRAVEL)
-        self.target[i] = self.stations[station].dock
+        self._aim(i, self.stations[station])
+
+    def _aim(self, i: int, st: Station) -> None:
+        """Robot i, travelling to `st`, drives at its dock, or at the end of a line that has
+        spilled beyond its first row."""
+        tail = len(st.line)
+        self.target[i] = st.slots[tail] if st.first_row <= tail < len(st.slots) else st.dock
         self.trigger[i] = self.config.join_radius_m
+
+    def _line_changed(self, station: int) -> None:
+        """Re-aim the robots travelling to `station` and move its waiting robots up."""
+        st = self.stations[station]
+        for k, j in enumerate(st.line):
+            self.target[j] = st.slots[k]
+        for traveller in np.flatnonzero((self.mode == Mode.TRAVEL) & (self.station == station)):
+            self._aim(int(traveller), st)
 
     def arrive(self, i: int, now: float) -> None:
         """Robot i reached the distance that fires its current trigger."""
@@ -163,8 +189,8 @@ class TaskCycle:
         else:
             st.line.append(i)
             self._set_mode(i, Mode.QUEUED)
-            self.target[i] = st.slots[len(st.line) - 1]
             self.trigger[i] = NEVER
+            self._line_changed(int(self.station[i]))
 
     def _dock(self, i: int, st: Station) -> None:
         st.occupant = i
@@ -172,19 +198,18 @@ class TaskCycle:
         self.target[i] = st.dock
         self.trigger[i] = self.config.dock_tolerance_m
 
-    def _release(self, st: Station) -> None:
+    def _release(self, station: int) -> None:
+        st = self.stations[station]
         st.occupant = -1
         if st.line:
             head = st.line.pop(0)
             self._dock(head, st)
-            for k, j in enumerate(st.line):
-                self.target[j] = st.slots[k]
+            self._line_changed(station)
 
     def finish_service(self, i: int, now: float) -> Completion | None:
         """Robot i's loading or unloading ended; returns the completed task after unloading."""
-        st = self.stations[self.station[i]]
         self.service_until[i] = math.inf
-        self._release(st)
+        self._release(int(self.station[i]))
         c = int(self.circuit[i])
         if self.phase[i] == Phase.TO_SOURCE:
             self.phase[i] = Phase.TO_SINK
@@ -203,11 +228,10 @@ class TaskCycle:
         if s >= 0:
             st = self.stations[s]
             if st.occupant == i:
-                self._release(st)
+                self._release(int(s))
             elif i in st.line:
                 st.line.remove(i)
-                for k, j in enumerate(st.line):
-                    self.target[j] = st.slots[k]
+                self._line_changed(int(s))
         self.phase[i] = Phase.BROKEN
         self._set_mode(i, Mode.IDLE)
         self.station[i] = -1

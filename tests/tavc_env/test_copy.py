@@ -33,6 +33,10 @@ def _clone(method: str, obj: Any) -> Any:
     return copy.deepcopy(obj) if method == "deepcopy" else pickle.loads(pickle.dumps(obj))
 
 
+TALL_LANES = tavc_env.lane_circuits(2, height=12.0, values=(2200.0, 2000.0))
+INSTANT = {"source_service_s": 0.0, "sink_service_s": 0.0}
+
+
 def _speeds(n: int, fast: float = 0.30, slow: float = 0.20) -> list[float]:
     return [fast if i % 2 == 0 else slow for i in range(n)]
 
@@ -167,11 +171,14 @@ def test_the_world_and_a_directly_driven_simulation_refuse_copies(method: str) -
     ("robots", "arena"),
     [
         (12, {}),
-        (24, {}),
-        # fast and noisy (up to 0.35 radii per step, speeds drawn up to 1.5x): contacts are common
-        (24, {"dt": 0.25, "speed_noise": 0.3}),
+        # the most robots dahl2004's waiting lines hold
+        (13, {}),
+        # 24 robots in dahl2004's lanes 12 m tall (the least whose lines hold them), fast and
+        # noisy (up to 0.35 radii per step, speeds drawn up to 1.5x), instant docks (robots
+        # never wait, so they meet in traffic): contacts are common
+        (24, {"dt": 0.25, "speed_noise": 0.3, "height": 12.0, "circuits": TALL_LANES, **INSTANT}),
     ],
-    ids=["dahl2004_12", "dahl2004_24", "dahl2004_24_contacts"],
+    ids=["dahl2004_12", "dahl2004_13", "tall_24_contacts"],
 )
 def test_copies_reproduce_the_future_in_a_crowded_arena(robots: int, arena: dict) -> None:
     """The copies are taken after 300 ticks (5 ticks per step), or in the tick after a contact

@@ -79,11 +79,15 @@ def crowd_robots(ratio: float, n: int, radius: float, dt: float) -> tuple[tavc_e
 def crowd(
     ratio: float, n: int = 24, radius: float = 0.22, dt: float = 0.1, **kw: Any
 ) -> tavc_env.ArenaConfig:
-    """dahl2004's lanes with `crowd_robots`; above the envelope's bound, built with the robots of
-    a valid ratio and then given the fast ones without validation (to show what it prevents)."""
+    """dahl2004's lanes in an arena 12 m tall (the least whose waiting lines hold 24 robots) with
+    `crowd_robots`; above the envelope's bound, built with the robots of a valid ratio and then
+    given the fast ones without validation (to show what it prevents)."""
     robots = crowd_robots(ratio, n, radius, dt)
     if ratio <= MAX_STEP_OVER_RADIUS:
-        return tavc_env.make_config(robots=robots, dt=dt, robot_radius=radius, **kw)
+        lanes = tavc_env.lane_circuits(2, height=12.0, values=(2200.0, 2000.0))
+        return tavc_env.make_config(
+            robots=robots, dt=dt, robot_radius=radius, height=12.0, circuits=lanes, **kw
+        )
     config = crowd(MAX_STEP_OVER_RADIUS, n, radius, dt, **kw)
     object.__setattr__(config, "robots", robots)
     return config
@@ -134,7 +138,7 @@ def test_at_the_bound_a_crowded_arena_stays_within_the_overlap_tolerance() -> No
 
 def test_past_the_bound_robots_interpenetrate() -> None:
     """Why the bound exists: the same crowd at 0.9 radii per step (validation bypassed)."""
-    assert deepest_overlap(crowd(0.9), 300.0) > 2 * OVERLAP_TOLERANCE
+    assert deepest_overlap(crowd(0.9, speed_noise=0.3), 300.0) > 2 * OVERLAP_TOLERANCE
 
 
 # -- sensing range against the body ------------------------------------------------------------
@@ -184,7 +188,12 @@ def test_where_a_sensing_range_of_two_radii_divided_by_zero() -> None:
 def test_a_huge_arena_with_a_large_team_runs() -> None:
     """A 1e5 m arena with 24 robots died with MemoryError: the neighbour grid allocated all
     ~1e10 of its cells every tick. The grid is sparse now."""
-    env = tavc_env.parallel_env(width=1e5, height=1e5, speeds=[0.3, 0.2] * 12)
+    env = tavc_env.parallel_env(
+        width=1e5,
+        height=1e5,
+        circuits=tavc_env.lane_circuits(2, width=1e5, height=1e5),
+        speeds=[0.3, 0.2] * 12,
+    )
     assert env.sim._grid_cell > 0  # 24 robots: the grid is in use
     obs, _ = env.reset(seed=0)
     for _ in range(3):

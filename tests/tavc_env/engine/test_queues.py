@@ -12,6 +12,7 @@ import pytest
 
 import tavc_env
 from tavc_env.engine.tasks import Mode, Phase, TaskCycle
+from tavc_env.layout import ROW_PITCH
 from tests.helpers import CONFIGS, CrowdTrace
 
 # -- TaskCycle by hand -------------------------------------------------------------------------
@@ -122,13 +123,43 @@ def test_waiting_slots_are_a_line_of_free_spots_inside_the_arena(name: str) -> N
         assert dist.min() >= 2 * r, "slots of one line do not overlap"
 
 
-def test_a_line_that_would_leave_the_arena_folds_into_a_new_row() -> None:
-    cfg = tavc_env.parallel_env(speeds=[0.25] * 20).config
-    slots = cfg.waiting_slots(1, 19)  # the sink of circuit 0 (station 1)
-    r = cfg.robot_radius
-    assert len(np.unique(slots.round(6), axis=0)) == len(slots) == 19
-    assert len(np.unique(slots[:, 1].round(6))) >= 2, "more than one row"
+def test_a_line_that_would_leave_the_arena_snakes_into_rows_with_an_aisle_between() -> None:
+    cfg = tavc_env.parallel_env(speeds=[0.25] * 13).config  # the most dahl2004's lines hold
+    rows = cfg.waiting_rows(1, 12)  # the sink of circuit 0 (station 1)
+    slots = cfg.waiting_slots(1, 12)
+    r, spacing = cfg.robot_radius, cfg.queue_spacing_m
+    assert [len(row) for row in rows] == [6, 6]
+    assert len(np.unique(slots.round(6), axis=0)) == len(slots) == 12
     assert np.all(slots[:, 0] <= cfg.width - r) and np.all(slots[:, 1] >= r)
+    # the second row stands two spacings in (an aisle one slot wide between the rows) ...
+    assert rows[1][:, 1] - rows[0][0, 1] == pytest.approx([ROW_PITCH * spacing] * 6)
+    # ... and runs back toward the dock: moving up the line is always one spacing
+    steps = np.hypot(*np.diff(slots, axis=0).T)
+    assert steps[:5] == pytest.approx([spacing] * 5)
+    assert steps[5] == pytest.approx(ROW_PITCH * spacing)
+    assert steps[6:] == pytest.approx([spacing] * 5)
+
+
+def test_a_team_the_lines_cannot_hold_is_refused_naming_the_largest_team() -> None:
+    with pytest.raises(ValueError, match=r"hold a team of at most 13 robots"):
+        tavc_env.parallel_env(speeds=[0.25] * 14)
+
+
+def test_a_robot_heads_for_the_end_of_a_line_that_spilled_beyond_its_first_row() -> None:
+    tasks = _cycle(13)
+    source = tasks.stations[tasks.source_of(0)]
+    assert source.first_row == 6
+    _arrive_at_source(tasks, list(range(7)))  # one docks, six wait: the first row is full
+    tasks.choose(7, 0, 0.0)
+    assert np.array_equal(tasks.target[7], source.slots[6]), "the end of the line"
+    tasks.choose(8, 0, 0.0)
+    tasks.arrive(7, 0.0)  # 7 joins: 8 is aimed one slot further
+    assert np.array_equal(tasks.target[8], source.slots[7])
+    # the line moves up into its first row: the robot still on its way drives at the dock again
+    tasks.finish_service(0, 1.0)
+    tasks.finish_service(1, 2.0)
+    assert len(source.line) == 5 and np.array_equal(tasks.target[8], source.dock)
+    assert tasks.trigger[8] == tasks.config.join_radius_m
 
 
 @pytest.mark.parametrize("name", list(CONFIGS))
