@@ -6,9 +6,10 @@ one, never half of one; concurrent writers never share a temporary file. Nothing
 regular file (a symlink, a FIFO, a device node, a folder) is ever replaced: that is refused with
 a ValueError naming the path and what it is.
 
-Stored records carry a schema version and a SHA-256 checksum of their content, checked on load:
-a truncated, garbled or hand-edited file is reported in one line naming the file and what is
-wrong (`CorruptFileError`), never used silently.
+Stored records carry a schema version and a SHA-256 checksum of their content, checked on load
+(older records without one must be listed in a `CHECKSUMS.sha256` manifest beside them): a
+truncated, garbled, too deeply nested or hand-edited file is reported in one line naming the file
+and what is wrong (`CorruptFileError`), never used silently.
 """
 
 from __future__ import annotations
@@ -18,13 +19,16 @@ import hashlib
 import json
 import os
 import stat
+import sys
 import tempfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 SCHEMA_VERSION = 1
-MANIFEST = "CHECKSUMS.sha256"  # for records saved before they carried their own checksum
+# Vouches for records saved before they carried their own checksum; a record with neither is
+# refused (it may be a hand edit that deleted the checksum).
+MANIFEST = "CHECKSUMS.sha256"
 
 
 class CorruptFileError(ValueError):
@@ -121,11 +125,24 @@ def write_record(path: str | Path, data: Mapping[str, Any]) -> Path:
 
 
 def read_record(path: str | Path) -> dict[str, Any]:
-    """The JSON record at `path`, checked: its checksum (or, for a record saved before records
-    carried one, its folder's `CHECKSUMS.sha256` entry, where there is one) and schema. A
-    `CorruptFileError` names the file and what is wrong."""
+    """The JSON record at `path`, checked: its checksum and schema, or, for a record saved before
+    records carried a checksum, its entry in the `CHECKSUMS.sha256` beside it (a record with
+    neither is refused). A `CorruptFileError` names the file and what is wrong."""
     path = Path(path)
     raw = path.read_bytes()
+    try:
+        return _checked(path, raw)
+    except RecursionError:
+        # Both decoding and re-encoding (for the checksum) recurse once per level of nesting;
+        # no saved record comes near the limit, so this is a damaged or planted file.
+        raise CorruptFileError(
+            f"{path} is nested deeper than the interpreter's recursion limit "
+            f"({sys.getrecursionlimit()}) allows: not a saved record; allowed: a record saved by "
+            "this package"
+        ) from None
+
+
+def _checked(path: Path, raw: bytes) -> dict[str, Any]:
     try:
         data = json.loads(raw)
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
@@ -146,8 +163,17 @@ def read_record(path: str | Path) -> dict[str, Any]:
                 f"{path} has schema {schema!r}; allowed: {SCHEMA_VERSION} (this version's)"
             )
         return data
+    # Without a checksum only a manifest can tell an older record from one edited by hand (with
+    # its checksum deleted): nothing else vouches for it.
+    manifest = path.parent / MANIFEST
     expected = manifest_entry(path)
-    if expected is not None and hashlib.sha256(raw).hexdigest() != expected:
+    if expected is None:
+        where = f"is not listed in {manifest}" if manifest.exists() else f"there is no {manifest}"
+        raise CorruptFileError(
+            f"{path} has no checksum and {where}: it was edited or not saved by this package; "
+            f"allowed: a record with its checksum, or an older one listed in {MANIFEST} beside it"
+        )
+    if hashlib.sha256(raw).hexdigest() != expected:
         raise CorruptFileError(
             f"{path} does not match its entry in {MANIFEST}: it was edited or damaged after it "
             "was saved"
@@ -156,11 +182,18 @@ def read_record(path: str | Path) -> dict[str, Any]:
 
 
 def manifest_entry(path: Path) -> str | None:
-    """The SHA-256 of `path` listed in its folder's manifest, if there is one."""
+    """The SHA-256 of `path` listed in its folder's manifest, if there is one (a garbled
+    manifest raises `CorruptFileError` naming it)."""
     manifest = path.parent / MANIFEST
     if not manifest.exists():
         return None
-    for line in manifest.read_text(encoding="utf-8").splitlines():
+    try:
+        text = manifest.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise CorruptFileError(
+            f"{path} cannot be checked: {manifest} is not UTF-8 text ({error}): garbled"
+        ) from None
+    for line in text.splitlines():
         digest, _, name = line.partition("  ")
         if name == path.name:
             return digest

@@ -228,32 +228,35 @@ def test_an_interrupted_sweep_leaves_only_whole_trial_files(
             assert _same_trial(TrialResult.load(folder / f"{key}.json"), results[key])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known gap (agents/experiments/files.py): a record without `checksum` and `schema` is "
-    "taken for one saved before records carried them, and trusted if its folder has no "
-    "CHECKSUMS.sha256; a hand edit that also deletes both fields is accepted",
-)
 def test_an_edited_file_without_its_checksum_is_refused(
     clean: dict[str, bytes], tmp_path: Path
 ) -> None:
+    """A hand edit that also deletes `checksum` and `schema` is not taken for an older record:
+    only a `CHECKSUMS.sha256` beside it could vouch for that; a resumed sweep runs it again."""
     record = json.loads(clean[KEYS[0]])
     del record["checksum"], record["schema"]
     record["delivery_time_s"] = [1.0, 2.0]
     path = tmp_path / f"{KEYS[0]}.json"
     path.write_text(json.dumps(record))
-    with pytest.raises(CorruptFileError):
+    with pytest.raises(CorruptFileError, match="has no checksum") as caught:
         TrialResult.load(path)
+    assert str(path) in str(caught.value)
+    assert "\n" not in str(caught.value)  # one line
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        results = run_sweep(SPECS[:1], tmp_path, workers=1)
+    assert f"{path} has no checksum" in err.getvalue()
+    assert f"running trial {KEYS[0]!r} again" in err.getvalue()
+    original = tmp_path / "original.json"
+    original.write_bytes(clean[KEYS[0]])
+    assert _same_trial(results[KEYS[0]], TrialResult.load(original))
+    assert _same_trial(TrialResult.load(path), results[KEYS[0]])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=RecursionError,
-    reason="known gap (agents/experiments/files.py): JSON nested deeper than the interpreter's "
-    "recursion limit raises RecursionError from json.loads, not CorruptFileError naming the file",
-)
 def test_a_deeply_nested_file_is_refused_naming_it(tmp_path: Path) -> None:
     path = tmp_path / "deep.json"
     path.write_text("[" * 100_000)
-    with pytest.raises(CorruptFileError):
+    with pytest.raises(CorruptFileError, match="nested deeper than") as caught:
         TrialResult.load(path)
+    assert str(path) in str(caught.value)
+    assert "\n" not in str(caught.value)  # one line

@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import sys
 import threading
 from pathlib import Path
 
@@ -102,9 +103,38 @@ def test_records_carry_a_checksum_and_schema_checked_on_load(tmp_path: Path) -> 
 def test_old_records_are_checked_against_their_folders_manifest(tmp_path: Path) -> None:
     old = tmp_path / "old.json"
     old.write_text(json.dumps({"a": 1}))  # saved before records carried a checksum
-    assert read_record(old) == {"a": 1}  # no manifest: taken as it is
+    # Nothing vouches for it: it could be a hand edit that deleted the checksum.
+    with pytest.raises(
+        CorruptFileError, match=r"old\.json has no checksum and there is no .*CHECKSUMS\.sha256"
+    ):
+        read_record(old)
     write_manifest(tmp_path)
     assert read_record(old) == {"a": 1}
     old.write_text(json.dumps({"a": 2}))
     with pytest.raises(CorruptFileError, match=r"does not match its entry in CHECKSUMS\.sha256"):
         read_record(old)
+    other = tmp_path / "other.json"  # added after the manifest was written
+    other.write_text(json.dumps({"b": 1}))
+    with pytest.raises(
+        CorruptFileError, match=r"other\.json has no checksum and is not listed in .*CHECKSUMS"
+    ):
+        read_record(other)
+    (tmp_path / "CHECKSUMS.sha256").write_bytes(b"\xff\xfe garbled")
+    with pytest.raises(CorruptFileError, match=r"old\.json cannot be checked: .* not UTF-8"):
+        read_record(old)
+
+
+@pytest.mark.parametrize("checksum", [False, True])
+def test_nesting_near_or_past_the_recursion_limit_is_refused_naming_the_file(
+    tmp_path: Path, checksum: bool
+) -> None:
+    """Decoding and re-encoding (for the checksum) both recurse per level: at no depth does a
+    RecursionError escape instead of a `CorruptFileError` naming the file."""
+    path = tmp_path / "deep.json"
+    limit = sys.getrecursionlimit()
+    for depth in [*range(limit - 100, limit + 5), 10 * limit]:
+        tail = ', "checksum": "' + "0" * 64 + '"' if checksum else ""
+        path.write_text('{"x": ' + "[" * depth + "]" * depth + tail + "}")
+        with pytest.raises(CorruptFileError) as caught:
+            read_record(path)
+        assert str(path) in str(caught.value) and "\n" not in str(caught.value)
