@@ -172,6 +172,11 @@ class ArenaConfig:
     sensing_range_m: float = 1.0
     dt: float = 0.1
     breakdowns: tuple[Breakdown, ...] = field(default_factory=tuple)
+    # 0: off. Otherwise a robot drives at min(1, clearance / clearance_governor_m) of its own top
+    # speed, clearance being the free space to the nearest robot in its front half-plane (see
+    # tavc_env.engine.navigation). At most sensing_range_m - 2 x robot_radius: it must see the
+    # robots it slows for.
+    clearance_governor_m: float = 0.0
 
     def __post_init__(self) -> None:
         for name, kind in (
@@ -335,6 +340,15 @@ class ArenaConfig:
             self.sensing_range_m,
             f"a range of at least {MIN_SENSING_OVER_RADIUS:g} x robot_radius = {least:.4g} m "
             "(robots must sense each other before they touch at 2 x robot_radius)",
+        )
+        reach = self.sensing_range_m - 2 * r
+        governor = self.clearance_governor_m
+        require(
+            is_number(governor) and 0 <= governor <= reach * (1 + 1e-9),
+            "clearance_governor_m",
+            governor,
+            f"0 (off) or a clearance of at most sensing_range_m - 2 x robot_radius = {reach:.4g} m "
+            "(a robot can only slow for robots it senses)",
         )
 
     def stations(self) -> list[tuple[str, Point, Point]]:

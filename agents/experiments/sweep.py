@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import dataclasses
 import hashlib
 import inspect
 import json
@@ -37,6 +38,7 @@ from tqdm import tqdm
 from agents.experiments.files import CorruptFileError, read_record, write_record
 from agents.experiments.registry import make_allocator
 from agents.experiments.runner import Event, TrialResult, run_trial
+from tavc_env import ArenaConfig
 
 _KEY = re.compile(r"^[A-Za-z0-9_.=-]+$")
 BACKENDS = ("local", "ray")
@@ -123,7 +125,24 @@ def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
     env_only = set(inspect.signature(TavcArenaEnv.__init__).parameters) - {"preset", "config"}
     arena = {k: v for k, v in env_kwargs.items() if k not in env_only}
     config = make_config(arena.pop("preset", "dahl2004"), **arena)
-    return hashlib.sha256(repr(config).encode()).hexdigest()[:16]
+    return hashlib.sha256(digest_text(config).encode()).hexdigest()[:16]
+
+
+# Fields added to ArenaConfig after trial records began to carry digests. Each is neutral at its
+# default (the arena behaves as before it existed), so it enters the digest only when it is set:
+# trials stored before it came keep their digest and are resumed.
+FIELDS_SINCE_DIGESTS = ("clearance_governor_m",)
+
+
+def digest_text(config: ArenaConfig) -> str:
+    """What `arena_digest` hashes: the config's repr, less the fields of `FIELDS_SINCE_DIGESTS`
+    that are at their defaults."""
+    parts = [
+        f"{f.name}={getattr(config, f.name)!r}"
+        for f in dataclasses.fields(config)
+        if f.repr and (f.name not in FIELDS_SINCE_DIGESTS or getattr(config, f.name) != f.default)
+    ]
+    return f"{type(config).__qualname__}({', '.join(parts)})"
 
 
 J = TypeVar("J")

@@ -13,6 +13,13 @@ it turns at a bounded rate and drives forward along its heading. Three behaviour
 Speed is capped by the free distance along the current heading (a robot brakes behind a robot it
 cannot yet pass) and by the heading error (it turns on the spot when the target is behind it).
 
+An optional *clearance governor* (`ArenaConfig.clearance_governor_m`, off by default) scales the
+speed by min(1, clearance / governor), where the clearance is the free space between the robot's
+body and the nearest other robot in its front half-plane within sensing range (what a laser
+scanner's 180-degree field sees). This is how the laser-based obstacle-avoidance drivers of
+Pioneer robots slow down in a crowd: every robot loses the same *fraction* of its own top speed
+at a given clearance, whatever that top speed is, so crowding in travel is multiplicative.
+
 The per-tick loop over robot pairs is one function, compiled by numba when it is installed (the
 physics loop calls it every 0.1 s of simulated time, so interpreted Python would dominate the run
 time); without numba the same function runs as plain Python.
@@ -95,6 +102,7 @@ class SteerArgs(NamedTuple):
     present: np.ndarray  # (n,) bool: on the floor (False: broken)
     radius: float
     sensing: float
+    governor: float  # clearance (m) below which speed is governed; 0: no governor
     turn_step: float  # largest heading change per tick
     width: float
     height: float
@@ -119,6 +127,7 @@ def _steer_one(
     present: np.ndarray,
     radius: float,
     sensing: float,
+    governor: float,
     turn_step: float,
     width: float,
     height: float,
@@ -185,6 +194,7 @@ def _steer_one(
     hx = math.cos(h)
     hy = math.sin(h)
     free = math.inf
+    clearance = math.inf
     for k in range(n_others):
         j = others[k]
         if j == i or not present[j]:
@@ -195,7 +205,11 @@ def _steer_one(
         across = abs(hx * dy - hy * dx)
         if along > 0.0 and across < contact:
             free = min(free, along - math.sqrt(contact * contact - across * across))
+        if along > 0.0:
+            clearance = min(clearance, math.sqrt(dx * dx + dy * dy) - contact)
     speed *= _clip_c((free - BRAKE_GAP_M) / BRAKE_DISTANCE_M, 0.0, 1.0)
+    if governor > 0.0 and clearance < governor:
+        speed *= _clip_c(clearance / governor, 0.0, 1.0)
     out_heading[i] = h
     out_velocity[i, 0] = speed * hx
     out_velocity[i, 1] = speed * hy
@@ -213,6 +227,7 @@ def _steer_all(
     present: np.ndarray,
     radius: float,
     sensing: float,
+    governor: float,
     turn_step: float,
     width: float,
     height: float,
@@ -233,6 +248,7 @@ def _steer_all(
             present,
             radius,
             sensing,
+            governor,
             turn_step,
             width,
             height,
@@ -276,6 +292,7 @@ def _steer_all_grid(
     present: np.ndarray,
     radius: float,
     sensing: float,
+    governor: float,
     turn_step: float,
     width: float,
     height: float,
@@ -342,6 +359,7 @@ def _steer_all_grid(
             present,
             radius,
             sensing,
+            governor,
             turn_step,
             width,
             height,
@@ -443,6 +461,7 @@ class Navigator:
     def __init__(self, config: ArenaConfig) -> None:
         self.radius = config.robot_radius
         self.sensing = config.sensing_range_m
+        self.governor = config.clearance_governor_m
         self.turn_step = config.max_turn_rate * config.dt
         self.width = config.width
         self.height = config.height

@@ -282,6 +282,7 @@ class Simulation:
             present=world.in_space,
             radius=nav.radius,
             sensing=nav.sensing,
+            governor=nav.governor,
             turn_step=nav.turn_step,
             width=nav.width,
             height=nav.height,

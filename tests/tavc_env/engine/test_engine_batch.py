@@ -121,7 +121,10 @@ def test_grid_neighbour_search_gives_exactly_the_all_pairs_commands() -> None:
         present = rng.random(n) < 0.9
         a_v, a_h = np.zeros((n, 2)), np.zeros(n)
         b_v, b_h = np.zeros((n, 2)), np.zeros(n)
-        common = (pos, heading, target, moving, speed, present, radius, sensing, turn, w, h)
+        # every other trial with the clearance governor at its largest allowed range
+        governor = (sensing - 2 * radius) * (trial % 2)
+        common = (pos, heading, target, moving, speed, present, radius, sensing, governor)
+        common += (turn, w, h)
         steer_all(*common, a_v, a_h)
         steer_all_grid(*common, b_v, b_h, cell)
         assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), trial
