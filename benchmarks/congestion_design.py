@@ -1,0 +1,28 @@
+"""The design search for a congestion arena: which physical mechanisms (the clearance governor,
+the loading time) give crowding elasticity e <= 1 while t(4)/t(3) >= 1.1 keeps 3 + 3 the
+homogeneous equilibrium? Fixed allocations only, no learning; the rule that picks the arena shipped
+as `dahl2004_congestion` is in the study's docstring (`agents.studies.congestion_design`).
+
+Writes `congestion_design.{md,csv,json}` and every run (`runs/`) into `--out` (default
+benchmarks/results/congestion_design/); a rerun resumes.
+
+    python benchmarks/congestion_design.py            # 15 candidates x 3 seeds x 2 h
+    python benchmarks/congestion_design.py --quick    # smoke run
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from agents.studies import congestion_design as study
+from agents.studies.common import parse_settings
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    settings = parse_settings(study.Settings, argv, __doc__ or "")
+    print(study.run(settings).text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
