@@ -17,6 +17,15 @@ alternates).
 3. **Cross-interference** (preset `dahl2004`: robots 0-2 fast 0.30 m/s, 3-5 slow 0.20 m/s): f fast
    and s slow robots on circuit 0 (f, s = 0..3), the rest on circuit 1; the mean task time of a fast
    and of a slow robot on circuit 0 (and, from the same runs, on circuit 1 with 3-f fast, 3-s slow).
+4. **Elasticity** e (`agents.analysis.elasticity`), from the circuit-0 tables T_c(f, s) of 3.:
+   mean over f, s in 1..3 of ln(T_fast(f, s) / T_fast(1, 0)) divided by that of
+   ln(T_slow(f, s) / T_slow(0, 1)); 1: crowding costs every robot the same fraction of its time,
+   > 1: fast robots lose more. Its 95% interval is a percentile bootstrap resampling seeds.
+   `agents.studies.elasticity.measure_elasticity` measures e alone, for any arena.
+
+`--preset` (default dahl2004; also dahl2004_competence, dahl2004_light_stations) is the arena of
+the cross runs; t(n) and the switch runs use its arena with six robots at 0.25 m/s (for dahl2004:
+the preset dahl2004_homogeneous).
 
 Warm-up: in every run a task counts only if it was *decided* at or after `--warmup-min` (default
 10 simulated minutes) and it is not among the robot's first `--skip-first` (default 2) tasks (the
@@ -42,6 +51,7 @@ through the package's sweep runner (`--workers`, `--backend local|ray`) and are 
 
     python benchmarks/interference.py             # 130 runs: 5 seeds x 3 simulated h, ~3-5 min
     python benchmarks/interference.py --quick
+    python benchmarks/interference.py --preset dahl2004_competence --out /tmp/competence
 """
 
 from __future__ import annotations

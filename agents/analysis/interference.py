@@ -10,6 +10,7 @@ with `agents.analysis.stats`. A summary row is a dict: section, quantity, what i
 
 from __future__ import annotations
 
+import csv
 import math
 from collections import defaultdict
 from collections.abc import Sequence
@@ -122,6 +123,39 @@ def group_rows(run: FixedRun, experiment: str, label: str) -> list[Row]:
             members = [i for i in on_c if cls == "all" or run.classes[i] == cls]
             row.update(_time_shares(run, members, mean))
         rows.append(row)
+    return rows
+
+
+_INT_FIELDS = (
+    "seed",
+    "circuit",
+    "n_on_circuit",
+    "n_fast_on_circuit",
+    "n_slow_on_circuit",
+    "n_tasks",
+)
+
+
+def read_group_rows(path: Path) -> list[Row]:
+    """The group rows saved in a runs CSV (`interference_runs.csv`), typed as `group_rows` made
+    them: counts as int, times as float, and an empty cell (no time shares) left out."""
+    rows = []
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        if reader.fieldnames != RUN_FIELDS:
+            raise ValueError(f"{path} has columns {reader.fieldnames}; allowed: {RUN_FIELDS}")
+        for raw in reader:
+            row: Row = {}
+            for key, text in raw.items():
+                if text == "":
+                    continue
+                if key in _INT_FIELDS:
+                    row[key] = int(text)
+                elif key.endswith("_s") or key.endswith("_s_per_task"):
+                    row[key] = float(text)
+                else:
+                    row[key] = text
+            rows.append(row)
     return rows
 
 
@@ -256,6 +290,19 @@ def switch_cost(
     return out, info
 
 
+def cross_cell(rows: Sequence[Row], fast: int, slow: int, circuit: int, cls: str) -> dict[int, Row]:
+    """By seed, the row of the own-circuit tasks of class `cls` on `circuit` in the "cross" run
+    with `fast` fast and `slow` slow robots on circuit 0 (the rest on circuit 1)."""
+    return per_seed(
+        rows,
+        experiment="cross",
+        label=cross_label(fast, slow),
+        circuit=circuit,
+        robot_class=cls,
+        task_kind="own",
+    )
+
+
 def cross_matrices(
     rows: Sequence[Row], seeds: Sequence[int], preset: str
 ) -> tuple[list[Row], dict[tuple[int, str], Matrix], dict[tuple[int, str], Matrix]]:
@@ -271,14 +318,7 @@ def cross_matrices(
             for f in range(4):
                 for s in range(4):
                     nf, ns = (f, s) if c == 0 else (3 - f, 3 - s)
-                    sel = per_seed(
-                        rows,
-                        experiment="cross",
-                        label=cross_label(f, s),
-                        circuit=c,
-                        robot_class=cls,
-                        task_kind="own",
-                    )
+                    sel = cross_cell(rows, f, s, c, cls)
                     vals = [sel[k]["mean_task_time_s"] for k in seeds if k in sel]
                     t = times[(c, cls)][(nf, ns)] = mean_ci(vals)
                     q = queued[(c, cls)][(nf, ns)] = mean_ci(
@@ -330,7 +370,9 @@ def _curve_panel(ax: Any, summary_rows: Sequence[Row], section: str, quantity: s
     ax.grid(alpha=0.3)
 
 
-def _matrix_panel(ax: Any, fig: Any, mat: Matrix, cls: str, vmin: float, vmax: float) -> None:
+def _matrix_panel(
+    ax: Any, fig: Any, mat: Matrix, cls: str, vmin: float, vmax: float, preset: str
+) -> None:
     grid = np.full((4, 4), np.nan)
     for (f, s), stats in mat.items():
         grid[f, s] = stats[0]
@@ -346,7 +388,7 @@ def _matrix_panel(ax: Any, fig: Any, mat: Matrix, cls: str, vmin: float, vmax: f
     ax.set_yticks(range(4))
     ax.set_xlabel("slow robots on circuit 0, s")
     ax.set_ylabel("fast robots on circuit 0, f")
-    ax.set_title(f"{cls.capitalize()} robot's task time on circuit 0 (s), dahl2004")
+    ax.set_title(f"{cls.capitalize()} robot's task time on circuit 0 (s), {preset}")
     fig.colorbar(im, ax=ax, shrink=0.8)
 
 
@@ -355,10 +397,12 @@ def plot_interference(
     summary_rows: Sequence[Row],
     cross: dict[tuple[int, str], Matrix],
     ratio_line: float,
+    preset: str = "dahl2004",
+    homog: str = "dahl2004_homogeneous",
 ) -> None:
     """Four panels: t(n) and t(n)/t(n-1) per circuit with 95 % intervals (a dashed line at
     `ratio_line`), and a fast and a slow robot's task time on circuit 0 against the fast and slow
-    robots there (matplotlib needed)."""
+    robots there (matplotlib needed). `preset` and `homog` name the arenas in the titles."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -369,7 +413,7 @@ def plot_interference(
     _curve_panel(ax, summary_rows, "t_n", "mean task time (s)")
     ax.set_xlabel("robots on the circuit, n")
     ax.set_ylabel("mean task time t(n) (s)")
-    ax.set_title("Interference curve (dahl2004_homogeneous), 95% CI over seeds")
+    ax.set_title(f"Interference curve ({homog}), 95% CI over seeds")
     ax.legend()
     ax = axes[0, 1]
     _curve_panel(ax, summary_rows, "t_ratio", None)
@@ -382,7 +426,7 @@ def plot_interference(
     means = [st[0] for cls in ("fast", "slow") for st in cross[(0, cls)].values()]
     vmin, vmax = float(np.nanmin(means)), float(np.nanmax(means))
     for ax, cls in ((axes[1, 0], "fast"), (axes[1, 1], "slow")):
-        _matrix_panel(ax, fig, cross[(0, cls)], cls, vmin, vmax)
+        _matrix_panel(ax, fig, cross[(0, cls)], cls, vmin, vmax, preset)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -1,7 +1,8 @@
-"""Interference in the arena: task time against crowding t(n), the cost of a circuit switch, and
-the cross-interference between fast and slow robots, from runs of the bare engine with fixed
-allocations (`agents.experiments.measurement.run_fixed`; the analysis is
-`agents.analysis.interference`). The script is `benchmarks/interference.py`.
+"""Interference in the arena: task time against crowding t(n), the cost of a circuit switch, the
+cross-interference between fast and slow robots and the elasticity e drawn from it, from runs of
+the bare engine with fixed allocations (`agents.experiments.measurement.run_fixed`; the analysis is
+`agents.analysis.interference` and `agents.analysis.elasticity`). The script is
+`benchmarks/interference.py`.
 """
 
 from __future__ import annotations
@@ -17,9 +18,11 @@ from typing import Any
 import numpy as np
 
 import tavc_env
+from agents.analysis import elasticity as ea
 from agents.analysis import interference as ia
 from agents.analysis.reports import Report, fmt_ci, have_matplotlib, markdown_table, write_csv
 from agents.analysis.stats import mean_ci
+from agents.experiments.elasticity import FAST, PER_CLASS, SLOW
 from agents.experiments.measurement import FixedAllocation, run_fixed, two_circuit_allocation
 from agents.experiments.provenance import run_recorded
 from agents.experiments.sweep import json_jobs
@@ -38,6 +41,8 @@ RATIO_REQUIREMENT = 1.15  # t(4)/t(3) on the high-value circuit
 SWITCH_REQUIREMENT = 0.20  # extra time of a switch task relative to an own-circuit task
 EXPERIMENTS = ("t_n", "switch", "switch_lone", "cross")
 SWITCHER = 5  # the robot that alternates in the "switch" runs
+MEDIUM_SPEED = 0.25  # the robots of the t(n) and switch runs
+ELASTICITY_BOOT_SEED = 2004  # the Generator of the elasticity's bootstrap
 Row = dict[str, Any]
 
 
@@ -45,6 +50,10 @@ Row = dict[str, Any]
 class Settings(SweepOptions):
     """The interference benchmark's settings (its command line)."""
 
+    preset: str = HETERO
+    """the arena: a preset with three fast (0.30 m/s) and three slow (0.20 m/s) robots, whose team
+    runs the cross-interference; t(n) and the switch runs use its arena with six robots at 0.25
+    m/s (for dahl2004: the preset dahl2004_homogeneous)"""
     seeds: int = 5
     """seeds per configuration"""
     hours: float = 3.0
@@ -77,7 +86,32 @@ class Settings(SweepOptions):
         for name, ok, allowed in checks:
             if not ok:
                 raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
-        tavc_env.make_config(HOMOG, **self.overrides)  # a bad arena is refused before any run
+        team = (FAST,) * PER_CLASS + (SLOW,) * PER_CLASS
+        presets = sorted(
+            name
+            for name in tavc_env.PRESETS
+            if tavc_env.preset(name).robots == team and tavc_env.preset(name).n_circuits >= 2
+        )
+        if self.preset not in presets:
+            raise ValueError(f"preset = {self.preset!r} is invalid; allowed: one of {presets}")
+        # a bad arena is refused before any run
+        tavc_env.make_config(self.preset, **self.overrides)
+        tavc_env.make_config(self.homog_preset, **{**self.overrides, **self.homog_overrides})
+
+    @property
+    def homog_preset(self) -> str:
+        """The preset of the t(n) and switch runs."""
+        return HOMOG if self.preset == HETERO else self.preset
+
+    @property
+    def homog_overrides(self) -> dict[str, Any]:
+        """What turns `homog_preset` into the arena of the t(n) and switch runs."""
+        return {} if self.preset == HETERO else {"speeds": [MEDIUM_SPEED] * 2 * PER_CLASS}
+
+    @property
+    def homog_title(self) -> str:
+        """The arena of the t(n) and switch runs, as the report's headings name it."""
+        return HOMOG if self.preset == HETERO else f"{self.preset} arena, six robots at 0.25 m/s"
 
     @property
     def overrides(self) -> dict[str, Any]:
@@ -103,7 +137,9 @@ class Settings(SweepOptions):
     def recorded(self) -> dict[str, Any]:
         """What the report records as the settings (the sizes `--quick` applies included)."""
         s = self.sized()
+        preset = {} if s.preset == HETERO else {"preset": s.preset}  # (not recorded before)
         return {
+            **preset,
             "seeds": s.seed_list,
             "hours": s.hours,
             "warmup_min": s.warmup_min,
@@ -152,7 +188,18 @@ RUNS = json_jobs(run_job, job_key, unit="run")
 
 def seed_jobs(s: Settings, seed: int) -> list[Job]:
     """The 7 + 2 + 1 + 16 runs of one seed (see the script's docstring)."""
-    base = Job("t_n", HOMOG, (), seed, s.hours, s.warmup_min * 60.0, s.skip_first, arena=s.arena)
+    medium = None if s.preset == HETERO else (MEDIUM_SPEED,) * 2 * PER_CLASS
+    base = Job(
+        "t_n",
+        s.homog_preset,
+        (),
+        seed,
+        s.hours,
+        s.warmup_min * 60.0,
+        s.skip_first,
+        speeds=medium,
+        arena=s.arena,
+    )
     new = dataclasses.replace
     jobs = [
         new(base, circuit_of=two_circuit_allocation(n0), label=ia.t_n_label(n0)) for n0 in range(7)
@@ -161,13 +208,16 @@ def seed_jobs(s: Settings, seed: int) -> list[Job]:
     for others0 in (3, 2):  # the five others: `others0` on circuit 0, the rest on circuit 1
         alloc = (*two_circuit_allocation(others0, 5), 1)  # the switcher (5) starts on 1
         jobs.append(new(switching, circuit_of=alloc, label=ia.switch_label(others0)))
-    lone = new(switching, experiment="switch_lone", circuit_of=(0,), switcher=0, speeds=(0.25,))
+    lone = new(
+        switching, experiment="switch_lone", circuit_of=(0,), switcher=0, speeds=(MEDIUM_SPEED,)
+    )
     jobs.append(new(lone, label="lone"))
     for f in range(4):
         for sl in range(4):
             alloc = two_circuit_allocation(f, 3) + two_circuit_allocation(sl, 3)
             label = ia.cross_label(f, sl)
-            jobs.append(new(base, experiment="cross", preset=HETERO, circuit_of=alloc, label=label))
+            cross = new(base, experiment="cross", preset=s.preset, speeds=None)
+            jobs.append(new(cross, circuit_of=alloc, label=label))
     return jobs
 
 
@@ -199,6 +249,11 @@ class Findings:
     pooled: Row
     cross: dict[tuple[int, str], ia.Matrix]
     queued: dict[tuple[int, str], ia.Matrix]
+    elasticity: ea.Elasticity | None = None
+    elasticity_error: str = ""
+    """why e could not be measured (a cell without tasks, say), if it could not"""
+    preset: str = HETERO
+    homog_name: str = HOMOG
 
     def row(self, section: str, circuit: int, quantity: str) -> Row:
         return next(
@@ -208,11 +263,43 @@ class Findings:
         )
 
 
-def analyse(rows: Sequence[Row], seeds: Sequence[int]) -> Findings:
-    summary, tn = ia.t_n_curve(rows, seeds, HOMOG, np.random.default_rng(12345))
+def elasticity_rows(el: ea.Elasticity, preset: str) -> list[Row]:
+    """Summary rows of e (with its bootstrap interval) and of the two mean log-ratios."""
+    about = {"preset": preset, "circuit": 0}
+    n = el.n_seeds
+    return [
+        ia.summary_row(
+            "elasticity",
+            "elasticity e (percentile bootstrap 95% interval over seeds)",
+            (el.e, el.low, el.high, n),
+            **about,
+        ),
+        ia.summary_row(
+            "elasticity",
+            "mean ln(T_fast(f,s)/T_fast(1,0)), f,s in 1..3",
+            (el.fast_mean_log_ratio, math.nan, math.nan, n),
+            **about,
+            robot_class="fast",
+        ),
+        ia.summary_row(
+            "elasticity",
+            "mean ln(T_slow(f,s)/T_slow(0,1)), f,s in 1..3",
+            (el.slow_mean_log_ratio, math.nan, math.nan, n),
+            **about,
+            robot_class="slow",
+        ),
+    ]
+
+
+def analyse(
+    rows: Sequence[Row], seeds: Sequence[int], preset: str = HETERO, homog: str = HOMOG
+) -> Findings:
+    """The analysis of the runs' group rows; `preset` and `homog` name the arenas of the cross
+    runs and of the t(n) and switch runs in the summary rows."""
+    summary, tn = ia.t_n_curve(rows, seeds, homog, np.random.default_rng(12345))
     switch: dict[str, dict[str, Any]] = {}
     for case in switch_cases():
-        case_rows, switch[case.name] = ia.switch_cost(rows, seeds, HOMOG, case)
+        case_rows, switch[case.name] = ia.switch_cost(rows, seeds, homog, case)
         summary += case_rows
     # headline: the two 3 + 3 cases pooled (one value per run)
     pooled_values = [v for case in switch_cases()[:2] for v in switch[case.name]["rel_values"]]
@@ -220,13 +307,21 @@ def analyse(rows: Sequence[Row], seeds: Sequence[int]) -> Findings:
         "switch",
         "3+3 pooled over both circuits: relative extra",
         mean_ci(pooled_values),
-        preset=HOMOG,
+        preset=homog,
         n_on_circuit=3,
         robot_class="switcher",
     )
     summary.append(pooled)
-    cross_rows, cross, queued = ia.cross_matrices(rows, seeds, HETERO)
-    return Findings(summary + cross_rows, tn, switch, pooled, cross, queued)
+    cross_rows, cross, queued = ia.cross_matrices(rows, seeds, preset)
+    el, error = None, ""
+    try:
+        el = ea.elasticity(ea.seed_tables(rows, seeds), np.random.default_rng(ELASTICITY_BOOT_SEED))
+    except ValueError as e:  # a cell without counted tasks (a very short run)
+        error = str(e)
+    el_rows = elasticity_rows(el, preset) if el is not None else []
+    return Findings(
+        summary + cross_rows + el_rows, tn, switch, pooled, cross, queued, el, error, preset, homog
+    )
 
 
 # -- report -------------------------------------------------------------------------------------
@@ -275,7 +370,7 @@ def verdict_lines(f: Findings) -> list[str]:
         f"{_ci_pct(sw['lone into c1']['relative'])} %.",
     ]
     # TAVC equilibrium check in reward terms: 4th on c0 vs 3rd on c1
-    w0, w1 = (c.value for c in tavc_env.make_config(HOMOG).circuits)
+    w0, w1 = (c.value for c in tavc_env.make_config(f.homog_name).circuits)
     t0_4, t1_3 = np.mean(f.t_n[0][4]), np.mean(f.t_n[1][3])
     lines.append(
         f"- TAVC equilibrium (DESIGN.md section 3): the 4th robot on circuit 0 earns w0/t0(4) = "
@@ -304,7 +399,8 @@ def method_lines(s: Settings) -> list[str]:
         "over runs with a Student-t interval. Stations serve one robot at a time "
         "(source loading 20 s, sink unloading 4 s); robots are discs of radius 0.22 m.",
         "",
-        "## 1. Task time t(n) with n robots on a circuit (dahl2004_homogeneous, 0.25 m/s)",
+        f"## 1. Task time t(n) with n robots on a circuit ({s.homog_title}"
+        + (", 0.25 m/s)" if s.preset == HETERO else ")"),
         "",
     ]
 
@@ -450,22 +546,49 @@ def report_body(f: Findings, s: Settings) -> str:
         "delivery rate n / t(n) (the TAVC model's c); it saturates where the source station "
         "(20 s loading plus the changeover between robots) is busy all the time.",
         "",
-        "## 2. Extra time of a circuit switch (dahl2004_homogeneous)",
+        f"## 2. Extra time of a circuit switch ({s.homog_title})",
         "",
         switch_table(f),
         "",
         "'others a+b': the five non-switching robots, a on circuit 0 and b on circuit 1; the "
         "switcher (robot 5) alternates. 'robots on that circuit' counts the switcher.",
         "",
-        "## 3. Cross-interference (dahl2004: fast 0.30 m/s, slow 0.20 m/s)",
+        f"## 3. Cross-interference ({s.preset}: fast 0.30 m/s, slow 0.20 m/s)",
         "",
         "Mean task time (s) of a fast and of a slow robot on the high-value circuit 0, with f fast "
         "(rows) and s slow (columns) robots on circuit 0 (the robot itself included) and the rest "
         "on circuit 1.",
         "",
     ]
-    lines += cross_lines(f) + cross_notes(f)
+    lines += cross_lines(f) + cross_notes(f) + elasticity_lines(f)
     return "\n".join(lines)
+
+
+def elasticity_lines(f: Findings) -> list[str]:
+    """e with its interval, what it is made of, and how to read it."""
+    out = ["", "### Elasticity", ""]
+    el = f.elasticity
+    if el is None:
+        return [*out, f"e: NOT MEASURED ({f.elasticity_error})"]
+    fast, slow = el.fast_mean_log_ratio, el.slow_mean_log_ratio
+    if not math.isfinite(el.e):
+        reading = "undefined, as crowding costs the slow robots nothing"
+    elif el.e != 1:
+        who = "fast" if el.e > 1 else "slow"
+        reading = f"{who} robots lose the larger share of their time to crowding"
+    else:
+        reading = "crowding costs both classes the same share of their time"
+    return [
+        *out,
+        f"**e = {el.text()}** (95% percentile bootstrap over {el.n_seeds} seeds, resampling "
+        f"whole seeds; too narrow with few seeds): {reading}.",
+        "",
+        "e = mean over f, s in 1..3 of ln(T_fast(f,s) / T_fast(1,0)), divided by the same mean of "
+        "ln(T_slow(f,s) / T_slow(0,1)), from the tables of circuit 0 above averaged over seeds: "
+        f"{fast:.3f} for a fast robot (its task time x{math.exp(fast):.2f} on average over the "
+        f"shared cells) and {slow:.3f} for a slow one (x{math.exp(slow):.2f}). e = 1: crowding "
+        "costs every robot the same fraction of its time; e > 1: fast robots lose more.",
+    ]
 
 
 def summary(f: Findings, jobs: Sequence[Job]) -> dict[str, Any]:
@@ -479,9 +602,27 @@ def summary(f: Findings, jobs: Sequence[Job]) -> dict[str, Any]:
         "switch_relative_3p3_pooled": {k: pooled[k] for k in ("mean", "ci95_low", "ci95_high")},
         "switch_requirement": SWITCH_REQUIREMENT,
         "switch_pass": pooled["mean"] >= SWITCH_REQUIREMENT,
+        **elasticity_summary(f),
         "runs": len(jobs),
         "runs_per_experiment": {e: sum(1 for j in jobs if j.experiment == e) for e in EXPERIMENTS},
         "example_run": asdict(jobs[0]),
+    }
+
+
+def elasticity_summary(f: Findings) -> dict[str, Any]:
+    el = f.elasticity
+    if el is None:
+        return {"elasticity": {"error": f.elasticity_error}}
+    return {
+        "elasticity": {
+            "e": el.e,
+            "ci95_low": el.low,
+            "ci95_high": el.high,
+            "interval": "percentile bootstrap over seeds",
+            "n_seeds": el.n_seeds,
+            "fast_mean_log_ratio": el.fast_mean_log_ratio,
+            "slow_mean_log_ratio": el.slow_mean_log_ratio,
+        }
     }
 
 
@@ -512,7 +653,9 @@ def build_report(f: Findings, s: Settings, jobs: Sequence[Job]) -> Report:
         figures.append(
             (
                 "interference.png",
-                lambda path: ia.plot_interference(path, f.rows, f.cross, RATIO_REQUIREMENT),
+                lambda path: ia.plot_interference(
+                    path, f.rows, f.cross, RATIO_REQUIREMENT, f.preset, f.homog_name
+                ),
             )
         )
     return Report(
@@ -551,7 +694,7 @@ def run(settings: Settings) -> Outcome:
     rows = [r for job in jobs for r in results[job_key(job)]["rows"]]
     runs_csv = out / "interference_runs.csv"
     write_csv(runs_csv, rows, ia.RUN_FIELDS)
-    findings = analyse(rows, s.seed_list)
+    findings = analyse(rows, s.seed_list, s.preset, s.homog_preset)
     report = build_report(findings, s, jobs)
     written = [runs_csv, *report.write(out, provenance)]
     text = (
