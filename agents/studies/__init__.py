@@ -23,6 +23,7 @@ STUDIES: dict[str, str] = {
         "tavc_model",
         "allocators",
         "vacancy_chain",
+        "liveness",
     )
 }
 """Study name -> module."""
