@@ -20,6 +20,7 @@ from typing import Any
 
 import pytest
 
+from agents.experiments.files import write_manifest
 from agents.experiments.runner import TrialResult
 from agents.experiments.sweep import TrialSpec, json_jobs, result_path, run_jobs, run_sweep
 
@@ -181,6 +182,7 @@ def test_a_changed_preset_is_not_resumed_but_old_records_still_are(
     # also predate checksums)
     del stored["spec"]["arena"], stored["schema"], stored["checksum"]
     result_path(tmp_path, spec.key).write_text(json.dumps(stored))
+    write_manifest(result_path(tmp_path, spec.key).parent)  # as committed old records have
     done: list[bool] = []
     again = run_sweep([spec], tmp_path, workers=1, on_done=lambda s, r, was: done.append(was))
     assert done == [True]  # resumed, not rerun

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from agents.experiments.files import write_manifest
 from agents.experiments.sweep import TrialSpec, result_path, run_sweep
 from agents.studies import reproduce
 
@@ -33,6 +34,7 @@ def test_a_trial_whose_spec_changed_is_different(saved: Path, tmp_path: Path) ->
     data.pop("checksum"), data.pop("schema")
     changed = tmp_path / "changed.json"
     changed.write_text(json.dumps(data))
+    write_manifest(tmp_path)  # an old record without a checksum is read only if one vouches
     outcome = reproduce.run(reproduce.Settings(patterns=(str(changed),), workers=1))
     assert outcome.text.startswith("DIFFERENT") and not reproduce.all_reproduced(outcome)
 
