@@ -4,6 +4,10 @@ PettingZoo environment on pymunk physics.
     import tavc_env
     env = tavc_env.parallel_env(preset="dahl2004")
     observations, infos = env.reset(seed=0)
+
+`tavc_env.twin_parallel_env(tables=..., preset=...)` is the model twin: the same decision process
+with task times drawn from measured interference tables (`tavc_env.twin`), for fast what-if
+studies; never a replacement for the physics.
 """
 
 from tavc_env.config import (
@@ -21,6 +25,7 @@ from tavc_env.config import (
 from tavc_env.engine.simulation import Simulation
 from tavc_env.env import ENV_NAME, TavcArenaEnv, env, parallel_env, raw_env
 from tavc_env.registration import REGISTRY_ID, register
+from tavc_env.twin import InterferenceTables, TaskTimeCell, TwinArenaEnv, twin_parallel_env
 
 register()
 
@@ -33,9 +38,12 @@ __all__ = [
     "ArenaConfig",
     "Breakdown",
     "Circuit",
+    "InterferenceTables",
     "Robot",
     "Simulation",
+    "TaskTimeCell",
     "TavcArenaEnv",
+    "TwinArenaEnv",
     "__version__",
     "env",
     "lane_circuits",
@@ -45,4 +53,5 @@ __all__ = [
     "raw_env",
     "robots_from_speeds",
     "scaled_config",
+    "twin_parallel_env",
 ]

@@ -198,6 +198,14 @@ def _jsonable(value: Any) -> Any:
     return repr(value)
 
 
+def _factory_name(factory: Callable[..., Any]) -> str:
+    """`module.name` of an env factory (of the function a `functools.partial` wraps)."""
+    inner = getattr(factory, "func", factory)
+    name = getattr(inner, "__qualname__", None) or type(inner).__name__
+    module = getattr(inner, "__module__", None)
+    return f"{module}.{name}" if module else str(name)
+
+
 def run_trial(
     policies: Mapping[str, Policy] | PolicyFactory | Team,
     *,
@@ -209,6 +217,7 @@ def run_trial(
     progress: Callable[[float], None] | None = None,
     events: Sequence[Event] = (),
     on_step: Callable[[Any], None] | None = None,
+    env_factory: Callable[..., Any] | None = None,
     **env_kwargs: Any,
 ) -> TrialResult:
     """Run one trial and return what it recorded.
@@ -220,6 +229,11 @@ def run_trial(
     `env_kwargs` go to `tavc_env.parallel_env` (e.g. `preset="dahl2004"`, config overrides);
     `max_sim_time_s` is set from the two periods. `progress`, if given, is called with the
     simulated time after each step.
+
+    `env_factory` (None: `tavc_env.parallel_env`) builds the env instead, from the same keyword
+    arguments: e.g. `functools.partial(tavc_env.twin_parallel_env, tables=tables)` runs the trial
+    on the model twin (`tavc_env.twin`). A trial run on another factory records its name in
+    `env_kwargs["env_factory"]`, so its result cannot pass for a physics trial.
     """
     for name, value in (("convergence_s", convergence_s), ("measured_s", measured_s)):
         require(is_number(value) and value >= 0, name, value, "a finite duration >= 0 s")
@@ -242,8 +256,15 @@ def run_trial(
         reserved,
         "no max_sim_time_s / max_cycles: the trial's length is convergence_s + measured_s",
     )
+    require(
+        env_factory is None or callable(env_factory),
+        "env_factory",
+        env_factory,
+        "None (tavc_env.parallel_env) or a callable taking parallel_env's keyword arguments",
+    )
+    make_env = tavc_env.parallel_env if env_factory is None else env_factory
     total = float(convergence_s + measured_s)
-    env = tavc_env.parallel_env(max_sim_time_s=total, max_cycles=10**9, **env_kwargs)
+    env = make_env(max_sim_time_s=total, max_cycles=10**9, **env_kwargs)
     agents = list(env.possible_agents)
     events = check_events(events, env.config, total)
     team = policies if isinstance(policies, Team) else None
@@ -268,10 +289,13 @@ def run_trial(
         table[agent].reset(np.random.default_rng(seq), n_actions)
 
     cfg = env.config
+    recorded = _jsonable(env_kwargs)
+    if make_env is not tavc_env.parallel_env:
+        recorded["env_factory"] = _factory_name(make_env)
     result = TrialResult(
         seed=seed,
         label=label,
-        env_kwargs=_jsonable(env_kwargs),
+        env_kwargs=recorded,
         agents=agents,
         speed_classes=[r.speed_class for r in cfg.robots],
         speeds=[r.speed for r in cfg.robots],
