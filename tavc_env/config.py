@@ -472,12 +472,23 @@ ARENA_REGIMES: Mapping[str, Mapping[str, Any]] = {
     "light_stations": {"source_service_s": 6.0, "sink_service_s": 2.0},
 }
 
+# The congestion arena (`dahl2004_congestion`), chosen by the design search of
+# `agents.studies.congestion_design` from physics measurements alone (committed before any learner
+# ran on it): a clearance-governed speed over 2.56 m of clearance, read by a 3 m range sensor, and
+# 40 s loading. Its crowding elasticity is the lowest the search found (about 1.17, not <= 1).
+CONGESTION: Mapping[str, Any] = {
+    "clearance_governor_m": 2.56,
+    "sensing_range_m": 3.0,
+    "source_service_s": 40.0,
+}
+
 PRESETS: Mapping[str, Any] = {
     "dahl2004": _dahl2004,
     "dahl2004_homogeneous": _dahl2004_homogeneous,
     "three_circuits_three_classes": _three_circuits_three_classes,
     "dahl2004_competence": lambda: _dahl2004().replace(**ARENA_REGIMES["competence"]),
     "dahl2004_light_stations": lambda: _dahl2004().replace(**ARENA_REGIMES["light_stations"]),
+    "dahl2004_congestion": lambda: _dahl2004().replace(**CONGESTION),
 }
 
 

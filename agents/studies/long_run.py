@@ -1,5 +1,5 @@
-"""Long-run health of the arena: many simulated hours of `dahl2004` through the PettingZoo env with
-random circuit choices; per robot the longest time without a completion, the steps that hit the
+"""Long-run health of an arena: many simulated hours of a preset (`dahl2004` by default) through
+the PettingZoo env with random circuit choices; per robot the longest time without a completion, the steps that hit the
 step cap, escapes, and the closest approach of robots to each other and to the walls (sampled
 after every physics tick by `agents.experiments.measurement.SpacingMonitor`). The script is
 `benchmarks/long_run.py`.
@@ -36,6 +36,8 @@ Row = dict[str, Any]
 class Settings(SweepOptions):
     """The long-run check's settings (its command line)."""
 
+    preset: str = PRESET
+    """the arena (any preset)"""
     seeds: int = 4
     """number of seeds (seed0, seed0 + 1, ...)"""
     seed0: int = 0
@@ -56,6 +58,7 @@ class Settings(SweepOptions):
             ("seed0", isinstance(self.seed0, int) and self.seed0 >= 0, "an integer >= 0"),
             ("hours", math.isfinite(self.hours) and self.hours > 0, "> 0"),
             ("max_gap_min", math.isfinite(self.max_gap_min) and self.max_gap_min > 0, "> 0"),
+            ("preset", self.preset in tavc_env.PRESETS, f"one of {sorted(tavc_env.PRESETS)}"),
         ]
         for name, ok, allowed in checks:
             if not ok:
@@ -75,7 +78,7 @@ class Settings(SweepOptions):
     def recorded(self) -> dict[str, Any]:
         """What the report records as the settings (the sizes `--quick` applies included)."""
         s = self.sized()
-        return {"preset": PRESET, "hours": s.hours, "seeds": s.seed_list}
+        return {"preset": s.preset, "hours": s.hours, "seeds": s.seed_list}
 
 
 # -- one seed -----------------------------------------------------------------------------------
@@ -87,6 +90,7 @@ class LongRun:
     hours: float
     out_dir: str
     quiet: bool = True
+    preset: str = PRESET
 
 
 @dataclass
@@ -200,9 +204,11 @@ def robot_row(seed: int, i: int, speed_class: str, trace: Trace, end: float) -> 
     }
 
 
-def run_seed(seed: int, hours: float, out_dir: str, quiet: bool) -> dict[str, Any]:
+def run_seed(
+    seed: int, hours: float, out_dir: str, quiet: bool, preset: str = PRESET
+) -> dict[str, Any]:
     """One seed's run: per robot rows and the run's health figures."""
-    env = tavc_env.parallel_env(preset=PRESET, max_sim_time_s=hours * 3600.0, max_cycles=10**9)
+    env = tavc_env.parallel_env(preset=preset, max_sim_time_s=hours * 3600.0, max_cycles=10**9)
     monitor = SpacingMonitor(env.config)
     log = CsvAppender(Path(out_dir) / f"long_run_tasks_seed{seed}.csv", TASK_FIELDS)
     _, infos = env.reset(seed=seed)
@@ -235,7 +241,7 @@ def run_seed(seed: int, hours: float, out_dir: str, quiet: bool) -> dict[str, An
 
 def run_long(job: LongRun) -> dict[str, Any]:
     """One seed's run as JSON data (what the sweep saves)."""
-    result = run_seed(job.seed, job.hours, job.out_dir, job.quiet)
+    result = run_seed(job.seed, job.hours, job.out_dir, job.quiet, job.preset)
     data: dict[str, Any] = json.loads(json.dumps(result, default=float))
     return data
 
@@ -318,13 +324,31 @@ def robot_table(rows: Sequence[Row]) -> str:
     return markdown_table(header, cells)
 
 
+def team_text(preset: str) -> str:
+    """The preset's robots by index, class and top speed, e.g. '0-2 fast 0.3 m/s, 3-5 slow 0.2 m/s'."""
+    robots = tavc_env.preset(preset).robots
+    runs: list[list[int]] = []
+    for i, robot in enumerate(robots):
+        if runs and robots[runs[-1][0]] == robot:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+
+    def span(r: list[int]) -> str:
+        return f"{r[0]}-{r[-1]}" if len(r) > 1 else str(r[0])
+
+    return ", ".join(
+        f"{span(r)} {robots[r[0]].speed_class} {robots[r[0]].speed:g} m/s" for r in runs
+    )
+
+
 def report_body(
     results: Sequence[dict[str, Any]], worst: Row, failed: bool, s: Settings, wall_s: float
 ) -> list[str]:
     return [
         "## What was run",
         "",
-        f"Preset `dahl2004` (robots 0-2 fast 0.30 m/s, 3-5 slow 0.20 m/s) through the PettingZoo "
+        f"Preset `{s.preset}` (robots {team_text(s.preset)}) through the PettingZoo "
         f"parallel env with event-driven stepping (step cap 600 s), {s.hours:g} simulated hours "
         f"per seed, seeds {s.seed_list}. Every robot that must decide picks a circuit uniformly at "
         "random (numpy Generator seeded with [seed, 1]; the env is reset with `seed`). The robot "
@@ -365,7 +389,7 @@ def run(settings: Settings) -> LongRunOutcome:
     out = settings.out_dir()
     out.mkdir(parents=True, exist_ok=True)
     s = settings.sized()
-    jobs = [LongRun(seed, s.hours, str(out), s.quiet) for seed in s.seed_list]
+    jobs = [LongRun(seed, s.hours, str(out), s.quiet, s.preset) for seed in s.seed_list]
     jobs_dir = out / "cache" / "long_run"
     done, provenance = run_recorded(
         jobs,
@@ -385,7 +409,7 @@ def run(settings: Settings) -> LongRunOutcome:
     body = report_body(results, worst, bool(failed), s, provenance["wall_time_s"])
     report = Report(
         "long_run",
-        "Long-run health (dahl2004)",
+        f"Long-run health ({s.preset})",
         "\n".join(body),
         rows,
         summary(results, worst, bool(failed), s),
