@@ -27,7 +27,7 @@ import re
 import signal
 import sys
 import traceback
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -473,13 +473,19 @@ def run_sweep(
 
 
 def json_jobs(
-    run: Callable[[J], dict[str, Any]], key: Callable[[J], str], unit: str = "run"
+    run: Callable[[J], dict[str, Any]],
+    key: Callable[[J], str],
+    unit: str = "run",
+    omit: Collection[str] = (),
 ) -> JobKind[J, dict[str, Any]]:
     """A `JobKind` for jobs that are frozen dataclasses and results that are JSON data: each is
-    saved as `{"record": <the job>, "result": <the result>}`."""
+    saved as `{"record": <the job>, "result": <the result>}`. Fields named in `omit` stay out of
+    the record (bulky inputs; the job must then carry a digest of them in another field, so that
+    a changed input still fails to resume)."""
 
     def record(job: J) -> dict[str, Any]:
-        data: dict[str, Any] = json.loads(json.dumps(asdict(job), default=repr))  # type: ignore[call-overload]
+        fields = {k: v for k, v in asdict(job).items() if k not in omit}  # type: ignore[call-overload]
+        data: dict[str, Any] = json.loads(json.dumps(fields, default=repr))
         return data
 
     return JobKind(run=run, key=key, record=record, save=_save_json, load=_load_json, unit=unit)

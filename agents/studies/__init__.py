@@ -24,6 +24,8 @@ STUDIES: dict[str, str] = {
         "allocators",
         "vacancy_chain",
         "liveness",
+        "congestion_design",
+        "regime_map",
     )
 }
 """Study name -> module."""

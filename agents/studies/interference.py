@@ -381,6 +381,27 @@ def verdict_lines(f: Findings) -> list[str]:
     return lines
 
 
+def arena_text(s: Settings) -> str:
+    """The arena's stations, governor and robots in a sentence."""
+    c = tavc_env.make_config(s.preset, **s.overrides)
+    pace = (
+        f" at a {c.service_reference_speed:g} m/s robot's pace, scaled by each robot's speed"
+        if c.service_scales_with_speed
+        else ""
+    )
+    governor = (
+        f" Clearance governor: a robot drives at min(1, clearance / {c.clearance_governor_m:g} m) "
+        f"of its own top speed (sensing range {c.sensing_range_m:g} m)."
+        if c.clearance_governor_m > 0
+        else ""
+    )
+    return (
+        f"Stations serve one robot at a time (source loading {c.source_service_s:g} s, sink "
+        f"unloading {c.sink_service_s:g} s{pace}); robots are discs of radius "
+        f"{c.robot_radius:g} m.{governor}"
+    )
+
+
 def method_lines(s: Settings) -> list[str]:
     return [
         "",
@@ -396,8 +417,7 @@ def method_lines(s: Settings) -> list[str]:
         "task time minus mean own-circuit task time of the same robot on the same circuit "
         f"(switching every {s.switch_every} tasks: one switch task and "
         f"{s.switch_every - 1} own tasks per block); relative = that / own-task mean; mean "
-        "over runs with a Student-t interval. Stations serve one robot at a time "
-        "(source loading 20 s, sink unloading 4 s); robots are discs of radius 0.22 m.",
+        f"over runs with a Student-t interval. {arena_text(s)}",
         "",
         f"## 1. Task time t(n) with n robots on a circuit ({s.homog_title}"
         + (", 0.25 m/s)" if s.preset == HETERO else ")"),

@@ -227,6 +227,8 @@ def run_seed(
         "ticks": env.sim.ticks,
         "capped_steps": len(trace.capped_at_s),
         "escapes": env.escapes,
+        "jams": env.jams,
+        "jammed_s": env.time_jammed_s,
         "capped_at_s": trace.capped_at_s[:20],
         "wall_s": wall,
         "min_dist_m": monitor.min_dist,
@@ -278,6 +280,8 @@ def verdict_lines(
         f"{worst['gap_mid_mode']}); limit {s.max_gap_min:g} min.",
         "- Steps that hit the step cap (returned with nobody deciding): "
         f"{sum(res['capped_steps'] for res in results)}.",
+        f"- Jams found by the engine's detector: {sum(res['jams'] for res in results)} "
+        f"({sum(res['jammed_s'] for res in results):.0f} s jammed in all).",
         "- Escape manoeuvres of stuck robots (no progress for "
         f"{STUCK_PATIENCE_S:g} s): {sum(res['escapes'] for res in results)}.",
         f"- Minimum centre-to-centre distance between robots over "

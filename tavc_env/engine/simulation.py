@@ -155,6 +155,7 @@ class Simulation:
         self._anchor = np.zeros((n, 2))  # where each robot last made progress ...
         self._anchor_time = np.zeros(n)  # ... and when
         self._escape_until = np.zeros(n)  # end of a robot's escape manoeuvre (0: none)
+        self._escapes_end = 0.0  # the latest of them: a scalar test in every tick, not a max
         self._escape_target = np.zeros((n, 2))
         self.escapes = 0  # escape manoeuvres started since reset
         self._reset_jam_watch()
@@ -205,6 +206,7 @@ class Simulation:
         self._anchor = self._pos.copy()
         self._anchor_time = np.zeros(n)
         self._escape_until = np.zeros(n)
+        self._escapes_end = 0.0
         self.escapes = 0
         self._reset_jam_watch()
         self.heading = rng.uniform(-math.pi, math.pi, size=n)
@@ -314,7 +316,7 @@ class Simulation:
             self._bind()
         args = self._steer_args
         assert args is not None
-        if self.escapes and self._escape_until.max() > self.time_s:
+        if self._escapes_end > self.time_s:
             escaping = (self._escape_until > self.time_s)[:, None]
             args = args._replace(target=np.where(escaping, self._escape_target, tasks.target))
         self._steer(*args, *self._steer_extra)
@@ -411,6 +413,7 @@ class Simulation:
             goal, [margin, margin], [cfg.width - margin, cfg.height - margin]
         )
         self._escape_until[robot] = now + ESCAPE_TIME_S
+        self._escapes_end = now + ESCAPE_TIME_S
         self._anchor[robot] = pos[robot]
         self._anchor_time[robot] = now + ESCAPE_TIME_S
         self.escapes += 1

@@ -35,3 +35,15 @@ def test_bad_settings_are_refused_naming_the_field() -> None:
     for field, value in (("seeds", 1), ("hours", 0.0), ("knee", 0.5)):
         with pytest.raises(ValueError, match=rf"^{field} = "):
             design.Settings(**{field: value})
+
+
+def test_the_congestion_preset_is_the_committed_search_s_choice() -> None:
+    import json
+
+    import tavc_env
+    from agents.studies.common import RESULTS_DIR
+
+    report = json.loads((RESULTS_DIR / "congestion_design" / "congestion_design.json").read_text())
+    chosen = report["summary"]["chosen"]["candidate"]
+    (candidate,) = [c for c in design.CANDIDATES if c.name == chosen]
+    assert tavc_env.preset("dahl2004_congestion") == candidate.config()
