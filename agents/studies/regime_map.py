@@ -12,8 +12,9 @@ measured in the same arena): a what-if tool, never a substitute for the physics 
 Each arena's e is measured first (`agents.studies.elasticity.measure_elasticity`, the interference
 study's runs and settings), then its twin tables (`agents.experiments.twin_tables.build_tables`).
 The cells that decide the question (softmax T = 0.005 and 0.01 on `dahl2004_congestion` and on
-`dahl2004`) get `decisive_trials` physics trials and run first, the congestion arena's before
-`dahl2004`'s; every other cell gets `trials`. Trial k of every cell uses seed `seed + k`.
+`dahl2004`) get `decisive_trials` physics trials; the congestion arena's run first, then the
+twin's trials, then `dahl2004`'s decisive cells and the rest. Every other cell gets `trials`.
+Trial k of every cell uses seed `seed + k`.
 
 Every trial is kept as a compact record (its measures, about 1 KB) under `<out>/trials/` as it
 finishes, so an interrupted sweep resumes where it stopped; the report is written when all
@@ -653,10 +654,16 @@ def run(settings: Settings) -> Outcome:
         done = run_jobs(jobs, TABLES, out / "twin_tables", s.workers, backend=s.backend)
         tables = {job.arena: done[TABLES.key(job)] for job in jobs}
     physics = physics_trials(s)
-    n_decisive = sum(1 for j in physics if s.trials_in(j.arena, j.condition) == s.decisive_trials)
     twin = twin_trials(s, tables) if tables else []
-    # decisive physics first, then the twin (cheap), then the other physics cells
-    order = physics[:n_decisive] + twin + physics[n_decisive:]
+    # The first arena's decisive cells, then the twin (cheap: its predictions for every cell
+    # early), then the other physics trials.
+    first = physics[0].arena
+    n_first = sum(
+        1
+        for j in physics
+        if j.arena == first and s.trials_in(j.arena, j.condition) == s.decisive_trials
+    )
+    order = physics[:n_first] + twin + physics[n_first:]
     print(f"{len(physics)} physics trials, {len(twin)} twin trials", flush=True)
     results, provenance = run_recorded(
         order,

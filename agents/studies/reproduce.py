@@ -52,16 +52,26 @@ class Settings:
             raise ValueError(f"workers = {self.workers} is invalid; allowed: an integer >= 1")
 
     def paths(self) -> list[str]:
-        """The matching trial files (a random sample of them, with `sample`)."""
-        paths = sorted({p for pattern in self.patterns for p in glob.glob(pattern)})
+        """The matching trial files (a random sample of them, with `sample`). Files that are not
+        whole trials are left out: manifests and the compact per-trial records of studies such
+        as the liveness check and the regime map (which keep measures, not trajectories)."""
+        matched = {p for pattern in self.patterns for p in glob.glob(pattern)}
+        paths = sorted(p for p in matched if p.endswith(".json") and not _compact_record(p))
         if not paths:
             raise ValueError(
-                f"patterns = {list(self.patterns)} match no file; allowed: trial files"
+                f"patterns = {list(self.patterns)} match no whole trial file "
+                f"({len(matched)} files matched); allowed: trial files saved by agents.experiments"
             )
         if self.sample is not None and self.sample < len(paths):
             rng = np.random.default_rng(self.seed)
             paths = sorted(rng.choice(paths, size=self.sample, replace=False).tolist())
         return paths
+
+
+def _compact_record(path: str) -> bool:
+    """Whether `path` holds a study's compact record ({"record": ..., "result": ...})."""
+    with open(path, "rb") as f:
+        return f.read(11) == b'{"record": '
 
 
 def comparable(result: TrialResult, fields: set[str]) -> Any:

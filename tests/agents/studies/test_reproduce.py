@@ -40,9 +40,17 @@ def test_a_trial_whose_spec_changed_is_different(saved: Path, tmp_path: Path) ->
 
 
 def test_patterns_must_match_and_samples_are_seeded(tmp_path: Path) -> None:
-    with pytest.raises(ValueError, match="match no file"):
+    with pytest.raises(ValueError, match=r"match no whole trial file \(0 files matched\)"):
         reproduce.Settings(patterns=(str(tmp_path / "*.json"),)).paths()
+    # a study's compact records and manifests are not whole trials
+    (tmp_path / "compact.json").write_text('{"record": {"seed": 0}, "result": {}}')
+    (tmp_path / "CHECKSUMS.sha256").write_text("")
+    with pytest.raises(ValueError, match=r"\(2 files matched\)"):
+        reproduce.Settings(patterns=(str(tmp_path / "*"),)).paths()
     for k in range(5):
         (tmp_path / f"t{k}.json").write_text("{}")
     pick = reproduce.Settings(patterns=(str(tmp_path / "*.json"),), sample=2, seed=3)
     assert pick.paths() == pick.paths() and len(pick.paths()) == 2
+    assert "compact.json" not in " ".join(
+        reproduce.Settings(patterns=(str(tmp_path / "*"),)).paths()
+    )
