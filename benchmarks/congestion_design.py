@@ -1,13 +1,16 @@
 """The design search for a congestion arena: which physical mechanisms (the clearance governor,
-the loading time) give crowding elasticity e <= 1 while t(4)/t(3) >= 1.1 keeps 3 + 3 the
-homogeneous equilibrium? Fixed allocations only, no learning; the rule that picks the arena shipped
-as `dahl2004_congestion` is in the study's docstring (`agents.studies.congestion_design`).
+the loading time, station bays) give crowding elasticity e <= 1 while t(4)/t(3) >= 1.1 keeps
+3 + 3 the homogeneous equilibrium? Fixed allocations only, no learning; the rules that pick the
+arenas (`dahl2004_congestion`, and `dahl2004_bays` for the regime map) are in the study's
+docstring (`agents.studies.congestion_design`).
 
 Writes `congestion_design.{md,csv,json}` and every run (`runs/`) into `--out` (default
-benchmarks/results/congestion_design/); a rerun resumes.
+benchmarks/results/congestion_design/, or congestion_design_bays/ for the second search); a
+rerun resumes.
 
-    python benchmarks/congestion_design.py            # 15 candidates x 3 seeds x 2 h
-    python benchmarks/congestion_design.py --quick    # smoke run
+    python benchmarks/congestion_design.py                 # 15 candidates x 3 seeds x 2 h
+    python benchmarks/congestion_design.py --search bays   # the second search: 12 candidates
+    python benchmarks/congestion_design.py --quick         # smoke run
 """
 
 from __future__ import annotations

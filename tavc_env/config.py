@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from tavc_env._validation import is_integer, is_number, require
-from tavc_env.layout import WALL_CLEARANCE_M, stack_rows, waiting_rows
+from tavc_env.layout import WALL_CLEARANCE_M, bay_positions, stack_rows, waiting_rows
 
 Point = tuple[float, float]
 MAX_SPEED_M_S = 2.0  # a Pioneer-sized robot; far above the 0.2-0.3 m/s of the paper
@@ -45,6 +45,7 @@ MIN_SENSING_OVER_RADIUS = 2.5
 # Positions are floats: at 1e6 m a float still resolves 1e-10 m, and the neighbour grid's cell
 # numbers fit a 64-bit integer with room to spare.
 MAX_ARENA_SIDE_M = 1e6
+MAX_BAYS = 8  # bays per station: a loading bank, not a warehouse wall
 
 
 def _items(name: str, value: object, kind: str) -> tuple[Any, ...]:
@@ -177,6 +178,11 @@ class ArenaConfig:
     # tavc_env.engine.navigation). At most sensing_range_m - 2 x robot_radius: it must see the
     # robots it slows for.
     clearance_governor_m: float = 0.0
+    # Bays per station: that many robots are loaded (or unloaded) side by side, each in its own
+    # bay, one line waiting for whichever frees first. 1: a one-robot dock (the paper's). Bays
+    # stand `queue_spacing_m` apart along the queue direction, a loading bank along the wall,
+    # and the line starts `queue_offset_m` beyond the last (see tavc_env.layout).
+    station_bays: int = 1
 
     def __post_init__(self) -> None:
         for name, kind in (
@@ -307,6 +313,22 @@ class ArenaConfig:
             f"{self.robot_radius} m in a {self.width} x {self.height} m arena (robots cannot fit)",
         )
 
+        require(
+            is_integer(self.station_bays) and 1 <= self.station_bays <= MAX_BAYS,
+            "station_bays",
+            self.station_bays,
+            f"an integer in [1, {MAX_BAYS}]",
+        )
+        for k, (name, _, _) in enumerate(self.stations()):
+            fit = len(self.bays(k))
+            require(
+                fit == self.station_bays,
+                f"{name} bays",
+                f"room for {fit} bays",
+                f"room for all {self.station_bays} bays, {self.queue_spacing_m:g} m apart along "
+                "the queue direction inside the arena and nearer their own station than any other "
+                "(or: fewer bays, a smaller queue_spacing_m, circuits further apart)",
+            )
         room = [len(self.waiting_slots(k, self.n_robots - 1)) for k in range(len(self.stations()))]
         for (name, _, _), held in zip(self.stations(), room):
             require(
@@ -374,9 +396,25 @@ class ArenaConfig:
             self.width,
             self.height,
             self.robot_radius,
-            self.queue_offset_m,
+            self.queue_offset_m + (self.station_bays - 1) * self.queue_spacing_m,
             self.queue_spacing_m,
             count,
+        )
+
+    def bays(self, station: int) -> np.ndarray:
+        """The bay positions of station `station` (index into `stations()`), the dock first;
+        fewer than `station_bays` if they do not fit (which validation refuses)."""
+        _, dock, direction = self.stations()[station]
+        others = [d for k, d in enumerate(self.docks()) if k != station]
+        return bay_positions(
+            dock,
+            direction,
+            others,
+            self.width,
+            self.height,
+            self.robot_radius,
+            self.queue_spacing_m,
+            self.station_bays,
         )
 
     def waiting_slots(self, station: int, count: int) -> np.ndarray:

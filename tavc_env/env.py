@@ -270,8 +270,9 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
 
     def state(self) -> np.ndarray:
         """Global state: per robot [x/W, y/H, cos h, sin h, vx/v, vy/v, circuit one-hot, phase
-        one-hot]; per station [occupied, line length / n_robots]. Velocities are divided by the
-        robot's top speed and clipped to [-1, 1] (contacts can briefly push a robot faster)."""
+        one-hot]; per station [fraction of its bays occupied, line length / n_robots].
+        Velocities are divided by the robot's top speed and clipped to [-1, 1] (contacts can
+        briefly push a robot faster)."""
         if self._rng is None:
             raise ValueError("state() called before reset(); allowed: call reset() first")
         cfg = self.config
@@ -287,9 +288,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         robots[:, 4:6] = np.clip(vel, -1.0, 1.0)
         robots[np.arange(n), 6 + sim.tasks.circuit] = 1.0
         robots[np.arange(n), 6 + m + sim.tasks.phase] = 1.0
-        stations = np.array(
-            [[st.occupant >= 0, len(st.line) / n] for st in sim.tasks.stations], np.float32
-        )
+        stations = np.array([[st.busy, len(st.line) / n] for st in sim.tasks.stations], np.float32)
         return np.concatenate([robots.ravel(), stations.ravel()])
 
     def render(self) -> np.ndarray | None:

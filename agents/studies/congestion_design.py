@@ -14,6 +14,18 @@ The rule, fixed before any candidate was measured: the arena shipped as `dahl200
 the candidate with the lowest e among those whose knee t(4)/t(3) is at least `knee` (point
 estimates); if none of them reaches e <= 1, it is still that candidate, shipped as the closest,
 and the report shows the frontier (the lowest e at each knee). No learning result enters.
+
+The first search (`--search governor_loading`, the 15 candidates above) reached no e <= 1 and
+chose `gov2.56_load40`. A second search (`--search bays`) adds the mechanism the first lacked:
+stations with several bays (`station_bays`), which turn the loading time into handling time that
+robots do not queue for, the one ingredient the physics-free model says gives e < 1 (fixed
+handling time plus congestion in travel). Its candidates: 2 or 3 bays x governor off, 1.06 or
+2.56 m x loading 20 or 40 s. Its rule, fixed before any of its candidates was measured: if a
+candidate reaches e <= 1 with the knee, the lowest-e such candidate replaces the first search's
+choice as `dahl2004_congestion` (which then stays in the regime map as another arena); if none
+does, `dahl2004_congestion` stays, and the candidate with the lowest e, knee or not, joins the
+regime map as `dahl2004_bays`: a physical point as far below e = 1 as this search reaches, to
+test the model's prediction on both sides of 1.
 """
 
 from __future__ import annotations
@@ -22,7 +34,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -49,13 +61,17 @@ class Candidate:
 
     governor_m: float
     loading_s: float
+    bays: int = 1
 
     @property
     def name(self) -> str:
-        return f"gov{self.governor_m:g}_load{self.loading_s:g}"
+        bays = f"_bays{self.bays}" if self.bays > 1 else ""
+        return f"gov{self.governor_m:g}_load{self.loading_s:g}{bays}"
 
     def overrides(self) -> dict[str, Any]:
         out: dict[str, Any] = {"source_service_s": self.loading_s}
+        if self.bays > 1:
+            out["station_bays"] = self.bays
         if self.governor_m > 0:
             out["clearance_governor_m"] = self.governor_m
             out["sensing_range_m"] = max(1.0, round(self.governor_m + 2 * 0.22, 2))
@@ -66,6 +82,10 @@ class Candidate:
 
 
 CANDIDATES = tuple(Candidate(g, load) for g in GOVERNORS_M for load in LOADING_S)
+BAYS_CANDIDATES = tuple(
+    Candidate(g, load, bays) for bays in (2, 3) for g in (0.0, 1.06, 2.56) for load in (20.0, 40.0)
+)
+SEARCHES = {"governor_loading": CANDIDATES, "bays": BAYS_CANDIDATES}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,6 +98,9 @@ class Settings(SweepOptions):
     """simulated hours per run"""
     knee: float = 1.1
     """the least t(4)/t(3) a candidate must reach (3 + 3 stays the homogeneous equilibrium)"""
+    search: Literal["governor_loading", "bays"] = "governor_loading"
+    """which search: the first (clearance governor x loading time) or the second (station bays x
+    governor x loading time)"""
     quick: bool = False
     """2 seeds x 0.4 h and three candidates (smoke run)"""
 
@@ -96,10 +119,12 @@ class Settings(SweepOptions):
         return replace(self, seeds=2, hours=0.4) if self.quick else self
 
     def candidates(self) -> tuple[Candidate, ...]:
-        return CANDIDATES[::6] if self.quick else CANDIDATES
+        candidates = SEARCHES[self.search]
+        return candidates[::6] if self.quick else candidates
 
     def out_dir(self) -> Path:
-        return self.out or RESULTS_DIR / "congestion_design"
+        suffix = "" if self.search == "governor_loading" else f"_{self.search}"
+        return self.out or RESULTS_DIR / f"congestion_design{suffix}"
 
     def recorded(self) -> dict[str, Any]:
         s = self.sized()
@@ -162,6 +187,7 @@ def assess(c: Candidate, rows: Sequence[Row], seeds: Sequence[int]) -> Row:
         "governor_m": c.governor_m,
         "sensing_m": c.config().sensing_range_m,
         "loading_s": c.loading_s,
+        "bays": c.bays,
         "e": e.e,
         "e_low": e.low,
         "e_high": e.high,
@@ -189,6 +215,15 @@ def frontier(rows: Sequence[Row]) -> list[Row]:
         ),
         key=lambda r: r["knee"],
     )
+
+
+RULES = {
+    "governor_loading": "The rule (fixed before measuring): lowest e among candidates with "
+    "t(4)/t(3) >= {knee}.",
+    "bays": "The rule (fixed before measuring): if candidates reach e <= 1 with t(4)/t(3) >= "
+    "{knee}, the lowest-e of them becomes `dahl2004_congestion`; otherwise the lowest-e candidate "
+    "joins the regime map as `dahl2004_bays`.",
+}
 
 
 def report_body(rows: Sequence[Row], chosen: Row | None, s: Settings) -> str:
@@ -223,7 +258,21 @@ def report_body(rows: Sequence[Row], chosen: Row | None, s: Settings) -> str:
         ],
     )
     reached = [r for r in rows if r["e"] <= 1.0 and r["knee"] >= s.knee]
-    if chosen is None:
+    lowest = min(rows, key=lambda r: r["e"])
+    if s.search == "bays" and not reached:
+        verdict = (
+            f"**No candidate reaches e <= 1 together with t(4)/t(3) >= {s.knee}**, so "
+            "`dahl2004_congestion` stays the first search's choice. By the rule, the lowest-e "
+            f"candidate, **{lowest['candidate']}** (e = {ci(lowest, 'e')}, t(4)/t(3) = "
+            f"{ci(lowest, 'knee')}), joins the regime map as `dahl2004_bays`."
+        )
+    elif s.search == "bays":
+        assert chosen is not None
+        verdict = (
+            f"**{chosen['candidate']} reaches e <= 1 with the knee**: e = {ci(chosen, 'e')}, "
+            f"t(4)/t(3) = {ci(chosen, 'knee')}. By the rule it becomes `dahl2004_congestion`."
+        )
+    elif chosen is None:
         verdict = f"No candidate reaches t(4)/t(3) >= {s.knee}; nothing is chosen."
     elif reached:
         verdict = (
@@ -249,8 +298,8 @@ def report_body(rows: Sequence[Row], chosen: Row | None, s: Settings) -> str:
             f"{s.hours:g} h per run. e: the interference study's cross runs (f fast 0.30 m/s and "
             "s slow 0.20 m/s robots on circuit 0, the rest on circuit 1), its percentile "
             "bootstrap over seeds. Knee: homogeneous 0.25 m/s runs with 3 and 4 robots on "
-            "circuit 0, ratio of seed means with a delta-method interval. The rule (fixed "
-            f"before measuring): lowest e among candidates with t(4)/t(3) >= {s.knee}.",
+            "circuit 0, ratio of seed means with a delta-method interval. "
+            + RULES[s.search].format(knee=s.knee),
             "",
             "## Candidates",
             "",

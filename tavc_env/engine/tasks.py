@@ -5,11 +5,13 @@ waits its turn, is loaded, drives to the circuit's sink, waits its turn, is unlo
 is complete (the robot's next decision epoch). The task time runs from the decision to the end of
 unloading.
 
-A station (one source and one sink per circuit) serves one robot at a time. A robot that comes
-within `join_radius_m` of a station's dock joins its line: if the station is free and nobody waits,
-it drives onto the dock, otherwise it drives to the next free waiting slot beside the dock and waits
-there. When a robot's service ends it leaves, and the robot at the head of the line drives onto the
-dock. The line is first come first served and stands in space: waiting robots are obstacles.
+A station (one source and one sink per circuit) serves one robot at a time in each of its bays
+(`station_bays`, one by default: a single dock). A robot that comes within `join_radius_m` of a
+station's dock joins its line: if a bay is free and nobody waits, it drives into the free bay
+nearest the dock, otherwise it drives to the next free waiting slot beside the dock and waits
+there. When a robot's service ends it leaves its bay, and the robot at the head of the line drives
+into that bay. The line is first come first served and stands in space: waiting robots are
+obstacles.
 
 A line longer than its first row (the row along the wall from the dock) stands in several rows
 across the approach to the dock, and a robot driving at the dock would push into them. So while
@@ -65,14 +67,36 @@ _LAST_MOVING = int(Mode.DOCKING)
 
 @dataclass
 class Station:
-    """A dock serving one robot at a time, with its line of waiting slots."""
+    """Bays serving one robot each (the first is the dock), with one line of waiting slots."""
 
-    dock: np.ndarray
+    docks: np.ndarray  # (bays, 2) bay positions, the dock first
     slots: np.ndarray  # (k, 2) waiting positions, in the order the line fills them
     first_row: int  # how many of `slots` stand in the first row, along the wall from the dock
     service_s: float
-    occupant: int = -1
+    occupants: list[int] = field(default_factory=list)  # per bay, the robot in it or -1
     line: list[int] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if not self.occupants:
+            self.occupants = [-1] * len(self.docks)
+
+    @property
+    def dock(self) -> np.ndarray:
+        return self.docks[0]
+
+    @property
+    def occupant(self) -> int:
+        """The robot in the first bay (the dock), or -1: a one-bay station's occupant."""
+        return self.occupants[0]
+
+    @property
+    def busy(self) -> float:
+        """The fraction of bays in use."""
+        return sum(o >= 0 for o in self.occupants) / len(self.occupants)
+
+    def free_bay(self) -> int:
+        """The free bay nearest the dock, or -1."""
+        return next((b for b, o in enumerate(self.occupants) if o < 0), -1)
 
 
 @dataclass(frozen=True)
@@ -93,11 +117,11 @@ class TaskCycle:
         n = config.n_robots
         # Station k is the source (k even) or sink (k odd) of circuit k // 2.
         self.stations = []
-        for k, (_, dock, _) in enumerate(config.stations()):
+        for k in range(len(config.stations())):
             rows = config.waiting_rows(k, max(n - 1, 1))
             self.stations.append(
                 Station(
-                    dock=np.array(dock, dtype=float),
+                    docks=config.bays(k),
                     slots=stack_rows(rows),
                     first_row=len(rows[0]) if rows else 0,
                     service_s=config.source_service_s if k % 2 == 0 else config.sink_service_s,
@@ -114,6 +138,7 @@ class TaskCycle:
         self.mode = np.zeros(n, dtype=np.int64)
         self.circuit = np.zeros(n, dtype=np.int64)
         self.station = np.full(n, -1, dtype=np.int64)
+        self.bay = np.full(n, -1, dtype=np.int64)  # the bay a docking or served robot holds
         self.decision_time = np.zeros(n)
         self.service_until = np.full(n, math.inf)
         self.trigger = np.full(n, NEVER)  # distance to target that fires an event; NEVER: none
@@ -142,6 +167,7 @@ class TaskCycle:
         self._set_mode(i, Mode.IDLE)
         self.circuit[i] = circuit
         self.station[i] = -1
+        self.bay[i] = -1
         self.trigger[i] = NEVER
         self.service_until[i] = math.inf
 
@@ -184,32 +210,37 @@ class TaskCycle:
 
     def _join(self, i: int) -> None:
         st = self.stations[self.station[i]]
-        if st.occupant < 0 and not st.line:
-            self._dock(i, st)
+        bay = st.free_bay()
+        if bay >= 0 and not st.line:
+            self._dock(i, st, bay)
         else:
             st.line.append(i)
             self._set_mode(i, Mode.QUEUED)
             self.trigger[i] = NEVER
             self._line_changed(int(self.station[i]))
 
-    def _dock(self, i: int, st: Station) -> None:
-        st.occupant = i
+    def _dock(self, i: int, st: Station, bay: int) -> None:
+        st.occupants[bay] = i
+        self.bay[i] = bay
         self._set_mode(i, Mode.DOCKING)
-        self.target[i] = st.dock
+        self.target[i] = st.docks[bay]
         self.trigger[i] = self.config.dock_tolerance_m
 
-    def _release(self, station: int) -> None:
+    def _release(self, i: int) -> None:
+        """Robot i leaves its bay; the head of the line, if any, takes it."""
+        station, bay = int(self.station[i]), int(self.bay[i])
         st = self.stations[station]
-        st.occupant = -1
+        st.occupants[bay] = -1
+        self.bay[i] = -1
         if st.line:
             head = st.line.pop(0)
-            self._dock(head, st)
+            self._dock(head, st, bay)
             self._line_changed(station)
 
     def finish_service(self, i: int, now: float) -> Completion | None:
         """Robot i's loading or unloading ended; returns the completed task after unloading."""
         self.service_until[i] = math.inf
-        self._release(int(self.station[i]))
+        self._release(i)
         c = int(self.circuit[i])
         if self.phase[i] == Phase.TO_SOURCE:
             self.phase[i] = Phase.TO_SINK
@@ -227,8 +258,8 @@ class TaskCycle:
         s = self.station[i]
         if s >= 0:
             st = self.stations[s]
-            if st.occupant == i:
-                self._release(int(s))
+            if self.bay[i] >= 0:
+                self._release(i)
             elif i in st.line:
                 st.line.remove(i)
                 self._line_changed(int(s))

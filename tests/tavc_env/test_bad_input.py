@@ -42,7 +42,7 @@ def _snapshot(env: tavc_env.TavcArenaEnv) -> tuple[Any, ...]:
         tasks.circuit.tobytes(),
         tasks.decision_time.tobytes(),
         env.sim.speed_factor.tobytes(),
-        tuple((s.occupant, tuple(s.line)) for s in tasks.stations),
+        tuple((tuple(s.occupants), tuple(s.line)) for s in tasks.stations),
     )
 
 

@@ -47,3 +47,17 @@ def test_the_congestion_preset_is_the_committed_search_s_choice() -> None:
     chosen = report["summary"]["chosen"]["candidate"]
     (candidate,) = [c for c in design.CANDIDATES if c.name == chosen]
     assert tavc_env.preset("dahl2004_congestion") == candidate.config()
+
+
+def test_the_bays_search_is_valid_and_keeps_the_first_search_s_names() -> None:
+    assert len(design.BAYS_CANDIDATES) == 12
+    for c in design.BAYS_CANDIDATES:
+        config = c.config()
+        assert config.station_bays == c.bays > 1
+        assert c.name.endswith(f"_bays{c.bays}")
+    # the first search's candidates (and so their stored runs) are named as they were
+    assert design.CANDIDATES[-1].name == "gov2.56_load40"
+    s = design.Settings(search="bays")
+    assert s.candidates() == design.BAYS_CANDIDATES
+    assert s.out_dir().name == "congestion_design_bays"
+    assert design.Settings().out_dir().name == "congestion_design"
