@@ -48,6 +48,7 @@ from agents.experiments.sweep import json_jobs, run_jobs
 from agents.experiments.twin_tables import build_tables
 from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
 from agents.studies.elasticity import measure_elasticity
+from tavc_env import metrics
 from tavc_env.twin import InterferenceTables
 
 ARENAS: Mapping[str, Mapping[str, Any]] = {
@@ -566,7 +567,9 @@ def report_body(rows: Sequence[Row], s: Settings) -> str:
             "arena). Fast - slow: per trial, the mean share of the measured period fast robots "
             "spend on the high-value circuit minus the slow robots'; mean and Student-t 95 % "
             "interval over trials. 3:0: % of the measured period with the three fast robots on "
-            "the high-value circuit and no slow one. Q gap: per robot, the mean over states of "
+            "the high-value circuit and no slow one (the paper's T, Eq. 3, for fair coins: "
+            f"{metrics.combinatorial_expectation(3, 3)[(3, 0)]:.2f} %; the random rows measure it "
+            "in each arena). Q gap: per robot, the mean over states of "
             "Q(high) - Q(other) in its final table; fast robots' mean minus slow robots' per "
             "trial. Perf / random: ratio of mean performance to the same engine's random cell "
             "(delta-method interval).",

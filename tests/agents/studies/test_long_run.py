@@ -101,3 +101,12 @@ def test_quick_run_passes_and_a_tight_limit_fails(tmp_path: Path) -> None:
     )
     assert tight.returncode == 1
     assert "FAIL: robot" in tight.stderr and "- **FAIL**" in tight.stdout
+
+
+def test_any_preset_can_be_checked_and_a_bad_one_is_refused() -> None:
+    with pytest.raises(ValueError, match=r"^preset = 'moon' is invalid; allowed: one of \["):
+        study.Settings(preset="moon")
+    s = study.Settings(preset="dahl2004_congestion", quick=True)
+    assert s.recorded()["preset"] == "dahl2004_congestion"
+    assert study.team_text("dahl2004") == "0-2 fast 0.3 m/s, 3-5 slow 0.2 m/s"
+    assert study.team_text("three_circuits_three_classes").count("m/s") == 3
