@@ -44,7 +44,7 @@ from agents.analysis.stats import mean_ci, ratio_ci
 from agents.experiments.provenance import run_recorded
 from agents.experiments.registry import make_allocator
 from agents.experiments.runner import run_trial
-from agents.experiments.sweep import json_jobs, run_jobs
+from agents.experiments.sweep import arena_digest, json_jobs, run_jobs
 from agents.experiments.twin_tables import build_tables
 from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
 from agents.studies.elasticity import measure_elasticity
@@ -203,6 +203,11 @@ class Settings(SweepOptions):
         return self.decisive_trials if (arena, condition) in decisive else self.trials
 
 
+def digest(arena: str) -> str:
+    """The digest of the arena's configuration (`agents.experiments.sweep.arena_digest`)."""
+    return arena_digest(ARENAS[arena])
+
+
 def arena_config(arena: str) -> tavc_env.ArenaConfig:
     kwargs = dict(ARENAS[arena])
     return tavc_env.make_config(kwargs.pop("preset"), **kwargs)
@@ -211,11 +216,13 @@ def arena_config(arena: str) -> tavc_env.ArenaConfig:
 # -- jobs ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class TablesJob:
-    """Measure one arena's twin tables."""
+    """Measure one arena's twin tables. `arena_sha` is the digest of the arena's configuration,
+    so a stored result is not resumed for an arena whose name now means another configuration."""
 
     arena: str
     seeds: tuple[int, ...]
     hours: float
+    arena_sha: str = ""
 
 
 def run_tables(job: TablesJob) -> dict[str, Any]:
@@ -237,6 +244,7 @@ class MapTrial:
     measured_h: float
     engine: Engine = "physics"
     tables_sha256: str = ""
+    arena_sha: str = ""  # the arena configuration's digest (see `TablesJob`)
     tables: Mapping[str, Any] | None = field(default=None, compare=False, repr=False)
 
 
@@ -290,7 +298,9 @@ def physics_trials(s: Settings) -> list[MapTrial]:
     seeds in every cell it reached."""
 
     def trial(arena: str, condition: str, k: int) -> MapTrial:
-        return MapTrial(arena, condition, s.seed + k, s.convergence_h, s.measured_h)
+        return MapTrial(
+            arena, condition, s.seed + k, s.convergence_h, s.measured_h, arena_sha=digest(arena)
+        )
 
     arenas = s.arena_list
     decisive = [(a, softmax_condition(t)) for a, t in DECISIVE if a in arenas]
@@ -313,6 +323,7 @@ def twin_trials(s: Settings, tables: Mapping[str, Mapping[str, Any]]) -> list[Ma
             s.measured_h,
             "twin",
             tables_digest(tables[a]),
+            digest(a),
             tables[a],
         )
         for k in range(s.twin_trials)
@@ -653,7 +664,7 @@ def run(settings: Settings) -> Outcome:
     }
     tables: dict[str, Mapping[str, Any]] = {}
     if s.twin_trials:
-        jobs = [TablesJob(a, tuple(range(s.table_seeds)), s.table_hours) for a in arenas]
+        jobs = [TablesJob(a, tuple(range(s.table_seeds)), s.table_hours, digest(a)) for a in arenas]
         done = run_jobs(jobs, TABLES, out / "twin_tables", s.workers, backend=s.backend)
         tables = {job.arena: done[TABLES.key(job)] for job in jobs}
     physics = physics_trials(s)

@@ -139,3 +139,13 @@ def test_quick_run_writes_the_report_and_resumes_everything(tmp_path: Path) -> N
     before = {p.name: p.read_bytes() for p in records}
     rm.run(s)  # resumes: no trial is run again
     assert {p.name: p.read_bytes() for p in sorted((tmp_path / "trials").glob("*.json"))} == before
+
+
+def test_records_carry_the_arena_s_digest_so_a_renamed_arena_is_not_resumed() -> None:
+    s = rm.Settings(arenas="dahl2004,dahl2004_congestion", trials=2, decisive_trials=2)
+    jobs = rm.physics_trials(s)
+    digests = {j.arena: rm.TRIALS.record(j)["arena_sha"] for j in jobs}
+    assert len(set(digests.values())) == 2 and all(digests.values())
+    assert (
+        rm.TablesJob("dahl2004", (0,), 1.0, rm.digest("dahl2004")).arena_sha == digests["dahl2004"]
+    )
