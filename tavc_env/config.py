@@ -520,6 +520,11 @@ CONGESTION: Mapping[str, Any] = {
     "source_service_s": 40.0,
 }
 
+# The second design search's lowest-e arena (`agents.studies.congestion_design --search bays`),
+# which by that search's rule joins the regime map: the congestion arena with three bays per
+# station. About e = 1.10, still above 1; 3 + 3 stays the homogeneous equilibrium.
+BAYS: Mapping[str, Any] = {**CONGESTION, "station_bays": 3}
+
 PRESETS: Mapping[str, Any] = {
     "dahl2004": _dahl2004,
     "dahl2004_homogeneous": _dahl2004_homogeneous,
@@ -527,6 +532,7 @@ PRESETS: Mapping[str, Any] = {
     "dahl2004_competence": lambda: _dahl2004().replace(**ARENA_REGIMES["competence"]),
     "dahl2004_light_stations": lambda: _dahl2004().replace(**ARENA_REGIMES["light_stations"]),
     "dahl2004_congestion": lambda: _dahl2004().replace(**CONGESTION),
+    "dahl2004_bays": lambda: _dahl2004().replace(**BAYS),
 }
 
 
