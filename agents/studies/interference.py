@@ -389,6 +389,11 @@ def arena_text(s: Settings) -> str:
         if c.service_scales_with_speed
         else ""
     )
+    serving = (
+        "Stations serve one robot at a time"
+        if c.station_bays == 1
+        else f"Stations have {c.station_bays} bays, each serving one robot at a time"
+    )
     governor = (
         f" Clearance governor: a robot drives at min(1, clearance / {c.clearance_governor_m:g} m) "
         f"of its own top speed (sensing range {c.sensing_range_m:g} m)."
@@ -396,7 +401,7 @@ def arena_text(s: Settings) -> str:
         else ""
     )
     return (
-        f"Stations serve one robot at a time (source loading {c.source_service_s:g} s, sink "
+        f"{serving} (source loading {c.source_service_s:g} s, sink "
         f"unloading {c.sink_service_s:g} s{pace}); robots are discs of radius "
         f"{c.robot_radius:g} m.{governor}"
     )

@@ -1,7 +1,7 @@
 """The regime map: where does the paper's differentiation appear, where does it reverse, and why?
 
-For each arena (the shipped `dahl2004` family and the congestion arena, spanning the crowding
-elasticity e) and each condition (softmax TAVC at T = 0.002, 0.005, 0.01, 0.02, epsilon-greedy
+For each arena (the shipped `dahl2004` family, the congestion arena and the bays arena of the
+second design search, spanning the crowding elasticity e) and each condition (softmax TAVC at T = 0.002, 0.005, 0.01, 0.02, epsilon-greedy
 TAVC with epsilon 0.1, random allocation), physics trials of 15 h + 5 h report, with 95 %
 intervals over trials: fast minus slow share of the measured period on the high-value circuit
 (the paper's effect: > 0), the time in the state 3:0 (all three robots on the high-value circuit
@@ -61,6 +61,7 @@ ARENAS: Mapping[str, Mapping[str, Any]] = {
     "dahl2004_competence": {"preset": "dahl2004_competence"},
     "dahl2004_light_stations": {"preset": "dahl2004_light_stations"},
     "dahl2004_congestion": {"preset": "dahl2004_congestion"},
+    "dahl2004_bays": {"preset": "dahl2004_bays"},
 }
 """Arena name -> `tavc_env.parallel_env` keyword arguments (a preset and its overrides)."""
 
@@ -108,7 +109,7 @@ class Settings(SweepOptions):
 
     arenas: str = ",".join(ARENAS)
     """comma-separated subset of the arenas dahl2004, dahl2004_instant_docks, dahl2004_competence,
-    dahl2004_light_stations, dahl2004_congestion"""
+    dahl2004_light_stations, dahl2004_congestion, dahl2004_bays"""
     trials: int = 60
     """physics trials per cell"""
     decisive_trials: int = 400

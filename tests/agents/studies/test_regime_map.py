@@ -41,7 +41,7 @@ def test_every_arena_is_valid_and_the_congestion_arena_is_the_preset() -> None:
 def test_decisive_cells_run_first_congestion_before_dahl2004_and_seed_by_seed() -> None:
     s = rm.Settings(trials=3, decisive_trials=5)
     jobs = rm.physics_trials(s)
-    assert len(jobs) == 4 * 5 + (5 * 6 - 4) * 3
+    assert len(jobs) == 4 * 5 + (6 * 6 - 4) * 3
     assert len({rm.trial_key(j) for j in jobs}) == len(jobs)
     head = [(j.arena, j.condition, j.seed) for j in jobs[:4]]
     assert head == [
@@ -52,10 +52,10 @@ def test_decisive_cells_run_first_congestion_before_dahl2004_and_seed_by_seed() 
     ]
     assert {j.arena for j in jobs[10:20]} == {"dahl2004"}
     rest = jobs[20:]
-    # a sweep stopped after k * 26 of the other trials has seeds 0..k-1 in every other cell
-    assert {j.seed for j in rest[:26]} == {0} and {j.seed for j in rest[26:52]} == {1}
+    # a sweep stopped after k * 32 of the other trials has seeds 0..k-1 in every other cell
+    assert {j.seed for j in rest[:32]} == {0} and {j.seed for j in rest[32:64]} == {1}
     cells = {(j.arena, j.condition) for j in jobs}
-    assert len(cells) == 30
+    assert len(cells) == 36
     assert all(
         s.trials_in(a, c)
         == (5 if (a, c) in {(x, rm.softmax_condition(t)) for x, t in rm.DECISIVE} else 3)
