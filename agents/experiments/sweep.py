@@ -217,26 +217,13 @@ def run_jobs(
     results: dict[str, R] = {}
     todo: list[J] = []
     for job in jobs:
-        key = kind.key(job)
-        path = result_path(out, key)
-        if not path.exists():
+        stored = _saved(job, kind, out)
+        if stored is None:
             todo.append(job)
             continue
-        try:
-            stored, record = kind.load(path)
-        except CorruptFileError as error:
-            print(f"{error}; running {kind.unit} {key!r} again", file=sys.stderr)
-            todo.append(job)
-            continue
-        if not kind.same(record, kind.record(job)):
-            raise ValueError(
-                f"{path} holds {kind.unit} {key!r} run with different settings "
-                f"({record or 'unknown'}); allowed: the same settings to resume, or another "
-                "output folder (or delete the file) for new ones"
-            )
-        results[key] = stored
+        results[kind.key(job)] = stored[0]
         if on_done is not None:
-            on_done(job, stored, True)
+            on_done(job, stored[0], True)
 
     records = {}
     for job in todo:  # bad input is refused before anything runs
@@ -278,6 +265,40 @@ def run_jobs(
     if failures:
         raise SweepError(failures, kind.unit)
     return results
+
+
+def _saved(job: J, kind: JobKind[J, R], out: Path) -> tuple[R] | None:
+    """The saved result of `job` in `out`, as a 1-tuple, if a run would resume it; None if it
+    must run (no file, or a corrupt one, which is named). A result saved with other settings is
+    a ValueError: it is never overwritten or mixed in."""
+    key = kind.key(job)
+    path = result_path(out, key)
+    if not path.exists():
+        return None
+    try:
+        stored, record = kind.load(path)
+    except CorruptFileError as error:
+        print(f"{error}; running {kind.unit} {key!r} again", file=sys.stderr)
+        return None
+    if not kind.same(record, kind.record(job)):
+        raise ValueError(
+            f"{path} holds {kind.unit} {key!r} run with different settings "
+            f"({record or 'unknown'}); allowed: the same settings to resume, or another "
+            "output folder (or delete the file) for new ones"
+        )
+    return (stored,)
+
+
+def saved_results(jobs: Sequence[J], kind: JobKind[J, R], out_dir: str | Path) -> dict[str, R]:
+    """The results of `jobs` already saved in `out_dir` (those a run would resume), by key,
+    without running anything: what an interim report of an unfinished sweep is made from."""
+    out = Path(out_dir)
+    found = {}
+    for job in jobs:
+        stored = _saved(job, kind, out)
+        if stored is not None:
+            found[kind.key(job)] = stored[0]
+    return found
 
 
 @dataclass(frozen=True)

@@ -41,10 +41,10 @@ from agents.analysis.elasticity import Elasticity
 from agents.analysis.measures import measure
 from agents.analysis.reports import Report, fmt_ci, markdown_table
 from agents.analysis.stats import mean_ci, ratio_ci
-from agents.experiments.provenance import run_recorded
+from agents.experiments.provenance import run_metadata, run_recorded
 from agents.experiments.registry import make_allocator
 from agents.experiments.runner import run_trial
-from agents.experiments.sweep import arena_digest, json_jobs, run_jobs
+from agents.experiments.sweep import arena_digest, json_jobs, run_jobs, saved_results
 from agents.experiments.twin_tables import build_tables
 from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
 from agents.studies.elasticity import measure_elasticity
@@ -133,6 +133,9 @@ class Settings(SweepOptions):
     """trial k of every cell uses seed + k"""
     quick: bool = False
     """smoke run: 2 trials (3 in decisive cells, 2 twin) of 0.3 + 0.2 h, short e and table runs"""
+    interim: bool = False
+    """run no trial: write `regime_map_interim.*` from the trials saved so far (an unfinished
+    sweep; every cell states its N, and cells with fewer than 2 trials are left out)"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -425,19 +428,21 @@ def summarise(
     rows = []
     for arena in arenas:
         for condition in CONDITIONS:
-            phys = records[(arena, condition, "physics")]
+            phys = records.get((arena, condition, "physics"), [])
+            if len(phys) < 2:
+                continue  # an unfinished sweep's cell
             row: Row = {
                 "arena": arena,
                 "e": e[arena].e,
                 "e_lo": e[arena].low,
                 "e_hi": e[arena].high,
                 "condition": condition,
-                **cell_row(phys, records[(arena, "random", "physics")]),
+                **cell_row(phys, records.get((arena, "random", "physics"), [])),
             }
             row["direction"] = direction(row)
             twin = records.get((arena, condition, "twin"), [])
             if len(twin) >= 2:
-                t = cell_row(twin, records[(arena, "random", "twin")])
+                t = cell_row(twin, records.get((arena, "random", "twin"), []))
                 row.update({f"twin_{k}": v for k, v in t.items() if k != "wall_s"})
                 row["twin_wall_s"] = t["wall_s"]
                 dd = welch_difference(diff_of(phys), diff_of(twin))
@@ -680,26 +685,41 @@ def run(settings: Settings) -> Outcome:
     )
     order = physics[:n_first] + twin + physics[n_first:]
     print(f"{len(physics)} physics trials, {len(twin)} twin trials", flush=True)
-    results, provenance = run_recorded(
-        order,
-        TRIALS,
-        out / "trials",
-        out,
-        s.recorded(),
-        workers=s.workers,
-        backend=s.backend,
-        wall_of=lambda result: float(result["wall_s"]),
-    )
+    if s.interim:
+        results = saved_results(order, TRIALS, out / "trials")
+        provenance = run_metadata(
+            settings=s.recorded(), interim=True, trials_saved=len(results), trials=len(order)
+        )
+    else:
+        results, provenance = run_recorded(
+            order,
+            TRIALS,
+            out / "trials",
+            out,
+            s.recorded(),
+            workers=s.workers,
+            backend=s.backend,
+            wall_of=lambda result: float(result["wall_s"]),
+        )
     records: dict[tuple[str, str, Engine], list[dict[str, Any]]] = {}
     for job in order:
-        records.setdefault((job.arena, job.condition, job.engine), []).append(
-            results[trial_key(job)]
-        )
+        if trial_key(job) in results:
+            records.setdefault((job.arena, job.condition, job.engine), []).append(
+                results[trial_key(job)]
+            )
     rows = summarise(records, e, arenas)
+    name = "regime_map_interim" if s.interim else "regime_map"
     body = report_body(rows, s)
+    if s.interim:
+        body = (
+            f"**Interim report of an unfinished sweep: {len(results)} of {len(order)} trials "
+            "saved so far.** Each cell states its N; the sweep resumes with the same command "
+            "without `--interim`.\n\n" + body
+        )
     report = Report(
-        "regime_map",
-        "The regime map: differentiation against crowding elasticity",
+        name,
+        "The regime map: differentiation against crowding elasticity"
+        + (" (interim)" if s.interim else ""),
         body,
         rows,
         summary={
@@ -710,8 +730,8 @@ def run(settings: Settings) -> Outcome:
                 if (r["arena"], r["condition"]) in {(a, softmax_condition(t)) for a, t in DECISIVE}
             ],
         },
-        figures=[("regime_map.png", lambda path: plot(rows, path))],
+        figures=[(f"{name}.png", lambda path: plot(rows, path))],
     )
     written = report.write(out, provenance)
-    text = "\n".join([*verdict_lines(rows), f"wrote {out / 'regime_map.md'}"])
+    text = "\n".join([*verdict_lines(rows), f"wrote {out / (name + '.md')}"])
     return Outcome(out, written, text)

@@ -149,3 +149,22 @@ def test_records_carry_the_arena_s_digest_so_a_renamed_arena_is_not_resumed() ->
     assert (
         rm.TablesJob("dahl2004", (0,), 1.0, rm.digest("dahl2004")).arena_sha == digests["dahl2004"]
     )
+
+
+def test_an_interim_report_runs_nothing_and_says_how_much_is_in(tmp_path: Path) -> None:
+    s = rm.Settings(quick=True, arenas="dahl2004_congestion", workers=1, out=tmp_path)
+    rm.run(s)
+    trials = tmp_path / "trials"
+    dropped = sorted(trials.glob("*softmax_T0.005__physics*.json"))[:1]
+    dropped += sorted(trials.glob("*softmax_T0.02__physics*.json"))
+    for path in dropped:
+        path.unlink()
+    before = sorted(p.name for p in trials.glob("*.json"))
+    outcome = rm.run(
+        rm.Settings(quick=True, arenas="dahl2004_congestion", workers=1, out=tmp_path, interim=True)
+    )
+    assert sorted(p.name for p in trials.glob("*.json")) == before  # nothing ran
+    md = (tmp_path / "regime_map_interim.md").read_text()
+    assert f"{len(before)} of {len(before) + len(dropped)} trials saved so far" in md
+    assert "| softmax_T0.02 |" not in md.split("## Cells")[1].split("## The twin")[0]
+    assert "over 2 trials" in outcome.text  # the T = 0.005 cell lost one of its three
