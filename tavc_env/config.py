@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from tavc_env._validation import is_integer, is_number, require
-from tavc_env.layout import WALL_CLEARANCE_M, bay_positions, stack_rows, waiting_rows
+from tavc_env.layout import WALL_CLEARANCE_M, stack_rows, waiting_rows
 
 Point = tuple[float, float]
 MAX_SPEED_M_S = 2.0  # a Pioneer-sized robot; far above the 0.2-0.3 m/s of the paper
@@ -386,7 +386,21 @@ class ArenaConfig:
 
     def waiting_rows(self, station: int, count: int) -> list[np.ndarray]:
         """Up to `count` waiting positions of station `station` (index into `stations()`), row by
-        row in the order the line fills them (see `tavc_env.layout.waiting_rows`)."""
+        row in the order the line fills them (see `tavc_env.layout.waiting_rows`); the line
+        starts `queue_offset_m` beyond the last bay."""
+        offset = self.queue_offset_m + (self.station_bays - 1) * self.queue_spacing_m
+        return self._rows(station, offset, count)
+
+    def bays(self, station: int) -> np.ndarray:
+        """The bay positions of station `station` (index into `stations()`): a loading bank
+        along the wall, the dock first, then every `queue_spacing_m` along the queue direction.
+        They follow the rule of waiting slots (inside the arena, nearer their own dock than any
+        other), so fewer than `station_bays` come back if they do not fit (validation refuses
+        that)."""
+        rows = self._rows(station, 0.0, self.station_bays)
+        return rows[0] if rows else np.zeros((0, 2))
+
+    def _rows(self, station: int, offset: float, count: int) -> list[np.ndarray]:
         _, dock, direction = self.stations()[station]
         others = [d for k, d in enumerate(self.docks()) if k != station]
         return waiting_rows(
@@ -396,25 +410,9 @@ class ArenaConfig:
             self.width,
             self.height,
             self.robot_radius,
-            self.queue_offset_m + (self.station_bays - 1) * self.queue_spacing_m,
+            offset,
             self.queue_spacing_m,
             count,
-        )
-
-    def bays(self, station: int) -> np.ndarray:
-        """The bay positions of station `station` (index into `stations()`), the dock first;
-        fewer than `station_bays` if they do not fit (which validation refuses)."""
-        _, dock, direction = self.stations()[station]
-        others = [d for k, d in enumerate(self.docks()) if k != station]
-        return bay_positions(
-            dock,
-            direction,
-            others,
-            self.width,
-            self.height,
-            self.robot_radius,
-            self.queue_spacing_m,
-            self.station_bays,
         )
 
     def waiting_slots(self, station: int, count: int) -> np.ndarray:

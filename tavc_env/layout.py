@@ -80,37 +80,6 @@ def waiting_rows(
     return rows
 
 
-def bay_positions(
-    dock: Sequence[float],
-    direction: Sequence[float],
-    other_docks: Sequence[Sequence[float]],
-    width: float,
-    height: float,
-    radius: float,
-    spacing: float,
-    count: int,
-) -> np.ndarray:
-    """Where a station's `count` bays stand: a loading bank along the wall, the dock first and
-    then every `spacing` along the queue `direction` (the waiting line starts beyond the last
-    bay). Stops at the first bay that would leave the arena or stand within `spacing` of being
-    as near another station's dock as its own (the rule of `waiting_rows`), so fewer than `count`
-    positions mean the bays do not fit."""
-    margin = radius + WALL_CLEARANCE_M
-    base = np.asarray(dock, dtype=float)
-    along = np.asarray(direction, dtype=float)
-    others = np.asarray(other_docks, dtype=float).reshape(-1, 2)
-    bays = []
-    for k in range(count):
-        p = base + along * k * spacing
-        if np.any(p < margin) or np.any(p > [width - margin, height - margin]):
-            break
-        own = k * spacing
-        if others.size and not np.all(np.hypot(*(others - p).T) >= own + spacing):
-            break
-        bays.append(p)
-    return np.array(bays, dtype=float).reshape(-1, 2)
-
-
 def stack_rows(rows: Sequence[np.ndarray]) -> np.ndarray:
     """The slots of `waiting_rows` as one (k, 2) array, in the order the line fills them."""
     return np.vstack(rows) if rows else np.zeros((0, 2))
