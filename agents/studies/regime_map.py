@@ -448,9 +448,10 @@ def summarise(
                 dd = welch_difference(diff_of(phys), diff_of(twin))
                 row.update({"physics_minus_twin": dd[0], "pmt_lo": dd[1], "pmt_hi": dd[2]})
                 row["agree_fast_minus_slow"] = bool(dd[1] <= 0 <= dd[2])
-                row["agree_ratio"] = condition == "random" or overlap(
-                    (row["ratio_lo"], row["ratio_hi"]), (t["ratio_lo"], t["ratio_hi"])
-                )
+                intervals = ((row["ratio_lo"], row["ratio_hi"]), (t["ratio_lo"], t["ratio_hi"]))
+                known = all(math.isfinite(x) for pair in intervals for x in pair)
+                # None: a random cell is missing, so there is no ratio to compare
+                row["agree_ratio"] = overlap(*intervals) if known else None
             rows.append(row)
     return rows
 
@@ -534,7 +535,7 @@ def twin_table(rows: Sequence[Row]) -> str:
             r["condition"],
             _ci(r, "physics_minus_twin", "pmt_lo", "pmt_hi"),
             "yes" if r["agree_fast_minus_slow"] else "**no**",
-            "yes" if r["agree_ratio"] else "**no**",
+            "-" if r["agree_ratio"] is None else "yes" if r["agree_ratio"] else "**no**",
         ]
         for r in rows
         if "physics_minus_twin" in r and r["condition"] != "random"

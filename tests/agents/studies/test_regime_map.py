@@ -121,6 +121,12 @@ def test_twin_agreement_is_the_welch_interval_of_the_difference() -> None:
     assert rows["softmax_T0.005"]["agree_fast_minus_slow"] is True
     assert rows["epsilon_0.1"]["agree_fast_minus_slow"] is False
     assert rows["epsilon_0.1"]["physics_minus_twin"] == pytest.approx(-0.3)
+    assert rows["softmax_T0.005"]["agree_ratio"] is True
+    # without the random cells there is no performance ratio to compare: neither yes nor no
+    del records[("a", "random", "physics")]
+    partial = {r["condition"]: r for r in rm.summarise(records, e, ["a"])}
+    assert partial["softmax_T0.005"]["agree_ratio"] is None
+    assert "| a | softmax_T0.005 |" in rm.twin_table(list(partial.values()))
 
 
 def test_quick_run_writes_the_report_and_resumes_everything(tmp_path: Path) -> None:
