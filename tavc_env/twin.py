@@ -61,7 +61,6 @@ from gymnasium import spaces
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
 from tavc_env.engine.simulation import (
-    JAM_WINDOW_S,
     Advance,
     ArenaSnapshot,
     Scheduled,
@@ -614,16 +613,8 @@ class TwinArenaEnv(TavcArenaEnv):
     def __init__(
         self,
         tables: InterferenceTables | Mapping[str, Any],
-        preset: str = "dahl2004",
-        config: ArenaConfig | None = None,
         render_mode: str | None = None,
-        max_cycles: int = 100_000,
-        max_sim_time_s: float = 24 * 3600.0,
-        decision_interval_s: float | None = None,
-        reward_time_unit: str = "ms",
-        step_cap_s: float = 600.0,
-        jam_window_s: float = JAM_WINDOW_S,
-        **overrides: Any,
+        **env_kwargs: Any,
     ) -> None:
         if isinstance(tables, Mapping):
             tables = InterferenceTables.from_dict(tables)
@@ -634,18 +625,8 @@ class TwinArenaEnv(TavcArenaEnv):
             "tavc_env.twin.InterferenceTables (or its to_dict())",
         )
         require(render_mode is None, "render_mode", render_mode, "None (the twin draws nothing)")
-        super().__init__(
-            preset=preset,
-            config=config,
-            render_mode=None,
-            max_cycles=max_cycles,
-            max_sim_time_s=max_sim_time_s,
-            decision_interval_s=decision_interval_s,
-            reward_time_unit=reward_time_unit,
-            step_cap_s=step_cap_s,
-            jam_window_s=jam_window_s,
-            **overrides,
-        )
+        # TavcArenaEnv's own arguments and defaults, passed through rather than restated here
+        super().__init__(render_mode=None, **env_kwargs)
         self.tables = tables
         self.process = TaskTimeProcess(self.config, tables)
         # The adapter (`TavcArenaEnv`) reads only what `TaskTimeProcess` offers of an engine.
