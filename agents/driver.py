@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from agents.policy import Policy
+from tavc_env.env import completed_task_s
 
 
 class PolicyDriver:
@@ -37,7 +38,7 @@ class PolicyDriver:
                 continue
             seen = observations[agent]
             previous = self._pending.pop(agent, None)
-            if previous is not None and info["task_time_s"] is not None:
+            if previous is not None and completed_task_s(info) is not None:
                 policy.update(
                     previous[0], previous[1], rewards[agent], seen["observation"], dict(info)
                 )

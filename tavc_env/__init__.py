@@ -23,8 +23,17 @@ from tavc_env.config import (
     scaled_config,
 )
 from tavc_env.engine.simulation import Simulation
-from tavc_env.env import ENV_NAME, TavcArenaEnv, env, parallel_env, raw_env
-from tavc_env.registration import REGISTRY_ID, register
+from tavc_env.env import (
+    ENV_NAME,
+    PHASES,
+    TavcArenaEnv,
+    completed_task_s,
+    env,
+    parallel_env,
+    raw_env,
+)
+from tavc_env.observations import OBSERVATION_FORMATS, OBSERVATION_MODES
+from tavc_env.registration import REGISTRY_ID, REGISTRY_ID_V0, register
 from tavc_env.twin import InterferenceTables, TaskTimeCell, TwinArenaEnv, twin_parallel_env
 
 register()
@@ -33,8 +42,12 @@ __version__ = "0.1.0"
 
 __all__ = [
     "ENV_NAME",
+    "OBSERVATION_FORMATS",
+    "OBSERVATION_MODES",
+    "PHASES",
     "PRESETS",
     "REGISTRY_ID",
+    "REGISTRY_ID_V0",
     "ArenaConfig",
     "Breakdown",
     "Circuit",
@@ -45,6 +58,7 @@ __all__ = [
     "TavcArenaEnv",
     "TwinArenaEnv",
     "__version__",
+    "completed_task_s",
     "env",
     "lane_circuits",
     "make_config",

@@ -1,15 +1,23 @@
 """The PettingZoo adapter: wires the arena engine to agents, spaces, rewards and infos.
 
-## tavc_arena_v0
+## tavc_arena_v1
 
 | | |
 |---|---|
 | Agents | `robot_0 .. robot_{n-1}` (`dahl2004`: 0-2 fast at 0.30 m/s, 3-5 slow at 0.20 m/s) |
 | Action space | `Discrete(n_circuits)`: action `i` = serve circuit `i` next |
-| Observation space | `Dict(observation=Box(0, 1, (n_circuits,), float32)`: one-hot of the robot's last circuit, `action_mask=Box(0, 1, (n_circuits,), int8))` |
+| Observation space | `observation_format="dict"` (default): `Dict(observation=Box(0, 1, (k,), float32), action_mask=Box(0, 1, (n_circuits,), int8))`; `"box"`: the `Box` alone, the mask in each info. `k` and the content depend on `observation_mode` (`tavc_env.observations`): `paper` (default, one-hot of the robot's last circuit), `paper_id`, `rich` |
 | Reward | `w_i / t` when a task on circuit `i` completes (t from decision to delivery, in ms by default), else 0 |
 | Stepping | event-driven: each step runs until some robot completes a task (or `step_cap_s`); or every `decision_interval_s` |
+| Infos | numbers and booleans only (every library can make tensors of them): `action_required`, `circuit`, `phase` (an integer code; its names are `PHASES`), `broken`, `task_completed` and `task_time_s` (0 when no task completed in the step; `completed_task_s(info)` reads both), `elapsed_s`, `sim_time_s`, `completed_tasks`, `jammed`; with `observation_format="box"` also `action_mask` |
 | State | `state()`: per robot position, heading, velocity, circuit and phase; per station occupancy and line |
+
+The mask allows every circuit to a robot that must decide; to a robot that need not, only the
+circuit it serves (its action is ignored anyway). A learner may therefore ignore the mask.
+
+Version history: v1 (this) made infos numeric (v0's `phase` was a name, its `task_time_s` None
+when no task completed: TorchRL and BenchMARL could not make tensors of them) and added the
+observation modes and formats. `tavc_env.v0` keeps v0 for saved work.
 
 Robots that do not have to decide may be given any action (or none): it is ignored. A robot that
 has to decide must be given a valid action, or `step` raises a ValueError and changes nothing. In
@@ -42,6 +50,7 @@ import hashlib
 import math
 import weakref
 from array import array
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -56,11 +65,14 @@ from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, make_config
 from tavc_env.engine.simulation import JAM_WINDOW_S, Advance, ArenaSnapshot, Simulation
 from tavc_env.engine.tasks import PHASE_NAMES, Phase
+from tavc_env.observations import ObservationBuilder, check_observation_args, frozen
 
-ENV_NAME = "tavc_arena_v0"
+ENV_NAME = "tavc_arena_v1"
 RENDER_MODES = ("human", "rgb_array")
 TIME_UNITS = {"ms": 1000.0, "s": 1.0}
 N_PHASES = len(Phase)
+# The names of the `phase` codes in infos: PHASES[info["phase"]]
+PHASES = tuple(PHASE_NAMES[p] for p in Phase)
 
 
 class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
@@ -78,6 +90,9 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         jam_window_s: the jam detector's window: no task event for this long while no moving
             robot gets 1 m from where it was is a jam, reported as `jammed` in every info
             (math.inf: off).
+        observation_mode: "paper" (default: the paper's one-hot), "paper_id" or "rich" (see
+            `tavc_env.observations` for what each reveals).
+        observation_format: "dict" (observation + action_mask) or "box" (the vector alone).
         **overrides: fields of `ArenaConfig` (and the shorthands `speeds`, `values`).
 
     `copy.deepcopy` and `pickle` of the env are exact at any point of an episode: they rebuild
@@ -102,8 +117,11 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         reward_time_unit: str = "ms",
         step_cap_s: float = 600.0,
         jam_window_s: float = JAM_WINDOW_S,
+        observation_mode: str = "paper",
+        observation_format: str = "dict",
         **overrides: Any,
     ) -> None:
+        check_observation_args(observation_mode, observation_format)
         self.config = make_config(preset, config, **overrides)
         dt = self.config.dt
         require(
@@ -172,21 +190,19 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         self.possible_agents = [f"robot_{i}" for i in range(n)]
         self.agents: list[str] = []
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
-        self._observation_spaces = {
-            a: spaces.Dict(
-                {
-                    "observation": spaces.Box(0.0, 1.0, (m,), np.float32),
-                    "action_mask": spaces.Box(0, 1, (m,), np.int8),
-                }
+        self.observation_mode = observation_mode
+        self.observation_format = observation_format
+        self._builder = ObservationBuilder(self.config, observation_mode)
+        vector = self._builder.space
+        space: spaces.Space[Any] = vector
+        if observation_format == "dict":
+            space = spaces.Dict(
+                {"observation": vector, "action_mask": spaces.Box(0, 1, (m,), np.int8)}
             )
-            for a in self.possible_agents
-        }
+        self._observation_spaces = {a: space for a in self.possible_agents}
         self._action_spaces = {a: spaces.Discrete(m) for a in self.possible_agents}
-        # Observations take one of 2m + 1 values: share read-only constants instead of allocating
-        # two arrays per agent per step (that dominated steps with hundreds of robots).
-        self._onehot = [_frozen(np.eye(m, dtype=np.float32)[c]) for c in range(m)]
-        self._busy_mask = [_frozen(np.eye(m, dtype=np.int8)[c]) for c in range(m)]
-        self._free_mask = _frozen(np.ones(m, np.int8))
+        self._busy_mask = [frozen(np.eye(m, dtype=np.int8)[c]) for c in range(m)]
+        self._free_mask = frozen(np.ones(m, np.int8))
         per_robot = 6 + m + N_PHASES
         size = n * per_robot + 2 * 2 * m
         low = np.zeros(size, np.float32)
@@ -199,7 +215,8 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         self._rng: np.random.Generator | None = None
         self._history: _History | None = None  # what was done to the arena since reset
         self.num_cycles = 0
-        self._last_task_time: list[float | None] = [None] * n
+        self._last_task_time = np.full(n, math.nan)  # of the task each robot completed this step
+        self._last_task_by_circuit = np.full((n, m), math.nan)  # (rich observations)
         # deliveries since reset, each counting w_i / max w (the paper's measure, summed)
         self.delivered_value = 0.0
         self._renderer: Any = None
@@ -227,7 +244,8 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         _HISTORIES[self.sim] = self._history
         self.agents = self.possible_agents[:]
         self.num_cycles = 0
-        self._last_task_time = [None] * self.config.n_robots
+        self._last_task_time[:] = math.nan
+        self._last_task_by_circuit[:] = math.nan
         self.delivered_value = 0.0
         return self._observations(), self._infos(truncated=False)
 
@@ -448,7 +466,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
 
     def _rewards(self, out: Advance) -> dict[str, float]:
         rewards = dict.fromkeys(self.agents, 0.0)
-        self._last_task_time = [None] * self.config.n_robots
+        self._last_task_time[:] = math.nan
         unit = TIME_UNITS[self.reward_time_unit]
         values = self.sim.tasks.values
         for c in out.completions:
@@ -456,47 +474,61 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             rewards[agent] += float(values[c.circuit] / (c.task_time_s * unit))
             self.delivered_value += float(values[c.circuit] / values.max())
             self._last_task_time[c.robot] = float(c.task_time_s)
+            self._last_task_by_circuit[c.robot, c.circuit] = float(c.task_time_s)
         return rewards
 
-    def _observations(self) -> dict[str, dict[str, np.ndarray]]:
+    def _observations(self) -> dict[str, Any]:
+        vectors = self._builder.build(self.sim, self._last_task_by_circuit)
+        if self.observation_format == "box":
+            return {agent: vectors[self._index[agent]] for agent in self.agents}
+        masks = self._masks()
+        return {
+            agent: {"observation": vectors[i], "action_mask": masks[i]}
+            for agent in self.agents
+            for i in (self._index[agent],)
+        }
+
+    def _masks(self) -> list[np.ndarray]:
         tasks = self.sim.tasks
         deciding = tasks.needs_decision()
-        circuit = tasks.circuit
-        onehot, busy, free = self._onehot, self._busy_mask, self._free_mask
-        obs: dict[str, dict[str, np.ndarray]] = {}
-        for agent in self.agents:
-            i = self._index[agent]
-            c = circuit[i]
-            obs[agent] = {"observation": onehot[c], "action_mask": free if deciding[i] else busy[c]}
-        return obs
+        busy, free = self._busy_mask, self._free_mask
+        return [free if d else busy[c] for d, c in zip(deciding, tasks.circuit)]
 
     def _infos(self, truncated: bool) -> dict[str, dict[str, Any]]:
         tasks = self.sim.tasks
         now = self.sim.time_s
         deciding = tasks.needs_decision()
         jammed = bool(self.sim.jammed)
+        masks = self._masks() if self.observation_format == "box" else None
         infos: dict[str, dict[str, Any]] = {}
         for agent in self.agents:
             i = self._index[agent]
-            phase = Phase(int(tasks.phase[i]))
+            phase = int(tasks.phase[i])
+            done = not math.isnan(self._last_task_time[i])
             infos[agent] = {
                 "action_required": bool(deciding[i]) and not truncated,
                 "circuit": int(tasks.circuit[i]),
-                "phase": PHASE_NAMES[phase],
+                "phase": phase,
                 "broken": phase == Phase.BROKEN,
-                "task_time_s": self._last_task_time[i],
+                "task_completed": done,
+                "task_time_s": float(self._last_task_time[i]) if done else 0.0,
                 "elapsed_s": float(now - tasks.decision_time[i]),
                 "sim_time_s": float(now),
                 "completed_tasks": int(tasks.completed[i]),
                 "jammed": jammed,
             }
+            if masks is not None:
+                infos[agent]["action_mask"] = masks[i]
         return infos
 
 
-def _frozen(array: np.ndarray) -> np.ndarray:
-    array = array.copy()
-    array.setflags(write=False)
-    return array
+def completed_task_s(info: Mapping[str, Any]) -> float | None:
+    """The time of the task a robot completed in the step its `info` reports, or None if it
+    completed none (read from v1's `task_completed`, or v0's None; None where neither is)."""
+    t = info.get("task_time_s")
+    if t is None or not info.get("task_completed", True):
+        return None
+    return float(t)
 
 
 raw_env = TavcArenaEnv

@@ -1,21 +1,26 @@
 """Registration of the arena in PettingZoo's environment registry (PettingZoo >= 1.27 has one).
 
-After `import tavc_env`, `pettingzoo.make("parallel", "tavc/tavc_arena-v0", preset=...)` and
-`pettingzoo.make("aec", "tavc/tavc_arena-v0")` build the environments.
+After `import tavc_env`, `pettingzoo.make("parallel", "tavc/tavc_arena-v1", preset=...)` and
+`pettingzoo.make("aec", "tavc/tavc_arena-v1")` build the environments; `tavc/tavc_arena-v0` builds
+v0 (`tavc_env.v0`), kept for saved work.
 """
 
 from __future__ import annotations
 
 import pettingzoo
 
-REGISTRY_ID = "tavc/tavc_arena-v0"
+REGISTRY_ID = "tavc/tavc_arena-v1"
+REGISTRY_ID_V0 = "tavc/tavc_arena-v0"
+_ENTRY_POINTS = {REGISTRY_ID: "tavc_env.env", REGISTRY_ID_V0: "tavc_env.v0"}
 
 
 def register() -> None:
-    """Register both views once; a no-op on PettingZoo versions without a registry."""
+    """Register both views of both versions once; a no-op on PettingZoo versions without a
+    registry."""
     if not hasattr(pettingzoo, "register"):
         return
-    if REGISTRY_ID not in pettingzoo.parallel_registry:
-        pettingzoo.register("parallel", REGISTRY_ID, entry_point="tavc_env.env:parallel_env")
-    if REGISTRY_ID not in pettingzoo.aec_registry:
-        pettingzoo.register("aec", REGISTRY_ID, entry_point="tavc_env.env:env")
+    for name, module in _ENTRY_POINTS.items():
+        if name not in pettingzoo.parallel_registry:
+            pettingzoo.register("parallel", name, entry_point=f"{module}:parallel_env")
+        if name not in pettingzoo.aec_registry:
+            pettingzoo.register("aec", name, entry_point=f"{module}:env")

@@ -625,6 +625,13 @@ class TwinArenaEnv(TavcArenaEnv):
             "tavc_env.twin.InterferenceTables (or its to_dict())",
         )
         require(render_mode is None, "render_mode", render_mode, "None (the twin draws nothing)")
+        mode = env_kwargs.get("observation_mode", "paper")
+        require(
+            mode != "rich",
+            "observation_mode",
+            mode,
+            "'paper' or 'paper_id' (the twin has no positions for 'rich')",
+        )
         # TavcArenaEnv's own arguments and defaults, passed through rather than restated here
         super().__init__(render_mode=None, **env_kwargs)
         self.tables = tables

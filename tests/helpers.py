@@ -21,6 +21,7 @@ import pytest
 from gymnasium.utils.env_checker import data_equivalence
 
 import tavc_env
+from tavc_env import completed_task_s
 
 # Advisories PettingZoo's checkers give for any Dict observation space. They are inherent to the
 # design (DESIGN.md section 2 fixes the observation as Dict(observation, action_mask)); everything
@@ -42,7 +43,6 @@ REQUIRED_INFO_KEYS = {
     "elapsed_s",
     "sim_time_s",
 }
-PHASES = {"deciding", "to_source", "to_sink", "broken"}
 
 # Configurations every PettingZoo checker runs over (keyword arguments of `tavc_env.parallel_env`).
 CONFIGS: dict[str, dict[str, Any]] = {
@@ -56,6 +56,14 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "speeds": [0.3] * 6 + [0.2] * 6,
     },
     "fixed_interval_30s": {"decision_interval_s": 30.0},
+}
+# Every observation mode and format but the default (which CONFIGS run), for the checkers.
+OBSERVATION_CONFIGS: dict[str, dict[str, Any]] = {
+    "paper_id_observations": {"observation_mode": "paper_id"},
+    "rich_observations": {"observation_mode": "rich"},
+    "box_observations": {"observation_format": "box"},
+    "rich_box_observations": {"observation_mode": "rich", "observation_format": "box"},
+    "rich_fixed_interval": {"observation_mode": "rich", "decision_interval_s": 30.0},
 }
 
 
@@ -86,9 +94,14 @@ def seed_spaces(env: Any, seed: int = 0) -> Any:
 
 
 def random_policy(obs: dict[str, Any], infos: dict[str, Any], rng: np.random.Generator) -> dict:
-    """A uniformly random circuit for every robot that must decide; nothing for the others."""
+    """A uniformly random circuit for every robot that must decide; nothing for the others. (The
+    mask is in the observation, or in the info with `observation_format="box"`.)"""
     return {
-        a: int(rng.choice(np.flatnonzero(obs[a]["action_mask"])))
+        a: int(
+            rng.choice(
+                np.flatnonzero((obs[a] if isinstance(obs[a], dict) else infos[a])["action_mask"])
+            )
+        )
         for a in obs
         if infos[a]["action_required"]
     }
@@ -225,7 +238,7 @@ def lockstep(
             _record(env_a, actions, out_a, 0.0), _record(env_b, actions, out_b, 0.0), f"step {k}"
         )
         obs, infos = out_a[0], out_a[-1]
-        completions += sum(info["task_time_s"] is not None for info in infos.values())
+        completions += sum(completed_task_s(i) is not None for i in infos.values())
     return Lockstep(completions, obs, infos)
 
 

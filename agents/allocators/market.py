@@ -20,6 +20,7 @@ import numpy as np
 from agents.allocators.teams import TeamAllocator
 from agents.model import CompletionModel, as_model
 from tavc_env._validation import is_integer, is_number, require
+from tavc_env.env import completed_task_s
 
 
 def auction(bids: np.ndarray, places: Sequence[int], epsilon: float) -> list[int]:
@@ -144,7 +145,7 @@ class AuctionAllocator(TeamAllocator):
     def learn(
         self, robot: int, previous: int, action: int, reward: float, info: Mapping[str, Any]
     ) -> None:
-        t = info.get("task_time_s")
+        t = completed_task_s(info)
         if t is None or previous != action:
             return
         old = self.times[robot, action]

@@ -19,6 +19,7 @@ from agents.allocators.teams import TeamAllocator
 from agents.learners.selection import sample
 from agents.policy import generator
 from tavc_env._validation import is_number, require
+from tavc_env.env import completed_task_s
 
 
 class ResponseThresholdAllocator(TeamAllocator):
@@ -81,7 +82,7 @@ class ResponseThresholdAllocator(TeamAllocator):
 
     def on_observe(self, infos: Mapping[str, Mapping[str, Any]]) -> None:
         for info in infos.values():
-            if info["task_time_s"] is None:
+            if completed_task_s(info) is None:
                 continue
             i, now = int(info["circuit"]), float(info["sim_time_s"])
             gap = now - self.last[i]
@@ -111,7 +112,7 @@ class ResponseThresholdAllocator(TeamAllocator):
     def learn(
         self, robot: int, previous: int, action: int, reward: float, info: Mapping[str, Any]
     ) -> None:
-        t = info.get("task_time_s")
+        t = completed_task_s(info)
         if t is None:
             return
         row = self.theta[robot]

@@ -25,6 +25,8 @@ from agents.driver import PolicyDriver
 from agents.experiments.files import CorruptFileError, read_record, write_record
 from agents.policy import Policy, Team
 from tavc_env._validation import is_integer, is_number, require
+from tavc_env.engine.tasks import Phase
+from tavc_env.env import completed_task_s
 
 PolicyFactory = Callable[[str], Policy]
 EVENT_KINDS = ("break_down", "repair", "set_values")
@@ -334,7 +336,7 @@ def run_trial(
         if not any(info["action_required"] for info in infos.values()) and env.agents:
             result.capped_steps += 1
         for i, agent in enumerate(agents):
-            t = infos[agent]["task_time_s"]
+            t = completed_task_s(infos[agent])
             if t is not None:
                 result.delivery_time_s.append(infos[agent]["sim_time_s"])
                 result.delivery_robot.append(i)
@@ -372,7 +374,7 @@ def _apply(
     if event.kind == "break_down":
         env.break_down(agent)
         infos = {**infos, agent: {**infos[agent], "action_required": False, "broken": True}}
-        infos[agent]["phase"] = "broken"
+        infos[agent]["phase"] = int(Phase.BROKEN)
     else:
         env.repair(agent)
     result.events.append((now, event.kind, event.robot))

@@ -25,6 +25,7 @@ from agents.experiments.sweep import json_jobs
 from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
 from tavc_env.engine.navigation import STUCK_PATIENCE_S
 from tavc_env.engine.tasks import PHASE_NAMES, Mode, Phase
+from tavc_env.env import completed_task_s
 
 PRESET = "dahl2004"
 MODE_NAMES = {int(m): m.name.lower() for m in Mode}
@@ -143,15 +144,16 @@ def _drive(env: Any, infos: dict[str, Any], seed: int, log: CsvAppender, quiet: 
         deciding = False
         for a, info in infos.items():
             i = int(a.split("_")[1])
-            if info["task_time_s"] is not None:
-                trace.completions[i].append((now, info["circuit"], info["task_time_s"]))
+            t = completed_task_s(info)
+            if t is not None:
+                trace.completions[i].append((now, info["circuit"], t))
                 log.write(
                     {
                         "seed": seed,
                         "robot": i,
                         "speed_class": classes[i],
                         "circuit": info["circuit"],
-                        "task_time_s": round(info["task_time_s"], 3),
+                        "task_time_s": round(t, 3),
                         "time_s": round(now, 3),
                     }
                 )

@@ -14,9 +14,9 @@ import pytest
 from gymnasium import spaces
 
 import tavc_env
+from tavc_env import PHASES, completed_task_s
 from tests.helpers import (
     CONFIGS,
-    PHASES,
     REQUIRED_INFO_KEYS,
     constant_policy,
     lockstep,
@@ -80,8 +80,8 @@ def test_every_robot_decides_at_reset(name: str) -> None:
         assert set(infos[a]) >= REQUIRED_INFO_KEYS
         info = infos[a]
         assert info["action_required"] is True
-        assert info["phase"] == "deciding" and info["broken"] is False
-        assert info["task_time_s"] is None
+        assert PHASES[info["phase"]] == "deciding" and info["broken"] is False
+        assert info["task_completed"] is False and info["task_time_s"] == 0.0
         assert info["elapsed_s"] == 0.0 and info["sim_time_s"] == 0.0
         onehot = np.zeros(m, np.float32)
         onehot[info["circuit"]] = 1.0
@@ -168,9 +168,9 @@ def test_observations_masks_infos_and_rewards_over_a_run(name: str) -> None:
             obs, info, reward = rec.obs[a], rec.infos[a], rec.rewards[a]
             assert env.observation_space(a).contains(obs)
             assert set(info) >= REQUIRED_INFO_KEYS
-            assert info["phase"] in PHASES
-            assert info["action_required"] == (info["phase"] == "deciding")
-            assert info["broken"] == (info["phase"] == "broken")
+            assert info["phase"] in range(len(PHASES))
+            assert info["action_required"] == (PHASES[info["phase"]] == "deciding")
+            assert info["broken"] == (PHASES[info["phase"]] == "broken")
             assert info["sim_time_s"] == rec.time_s
             assert 0.0 <= info["elapsed_s"] <= rec.time_s
             # `circuit` is the robot's last choice (at a decision epoch: the one just delivered on)
@@ -182,7 +182,7 @@ def test_observations_masks_infos_and_rewards_over_a_run(name: str) -> None:
             assert np.array_equal(obs["observation"], onehot)
             expected_mask = np.ones(m, np.int8) if info["action_required"] else onehot
             assert np.array_equal(obs["action_mask"], expected_mask.astype(np.int8))
-            t = info["task_time_s"]
+            t = completed_task_s(info)
             if t is None:
                 assert reward == 0.0
             else:
@@ -209,11 +209,9 @@ def test_reward_is_paid_for_the_circuit_just_completed() -> None:
                 actions[a] = choice[a]
         _, rewards, _, _, infos = env.step(actions)
         for a, info in infos.items():
-            if info["task_time_s"] is not None:
+            if (t := completed_task_s(info)) is not None:
                 assert info["circuit"] == choice[a]
-                assert rewards[a] == pytest.approx(
-                    values[choice[a]] / (1000.0 * info["task_time_s"]), rel=1e-12
-                )
+                assert rewards[a] == pytest.approx(values[choice[a]] / (1000.0 * t), rel=1e-12)
                 seen.add(choice[a])
     assert seen == {0, 1}
 
@@ -229,7 +227,7 @@ def test_reward_time_unit_seconds_drops_the_factor_1000_and_nothing_else() -> No
         assert np.array_equal(a_rec.state, b_rec.state)
         assert a_rec.infos == b_rec.infos
         for a, info in b_rec.infos.items():
-            t = info["task_time_s"]
+            t = completed_task_s(info)
             if t is None:
                 assert b_rec.rewards[a] == 0.0
             else:

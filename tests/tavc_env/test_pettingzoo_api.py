@@ -30,7 +30,9 @@ from pettingzoo.test import (
 
 import tavc_env
 from tavc_env.env import TavcArenaEnv
-from tests.helpers import CONFIGS, seed_spaces, strict_warnings
+from tests.helpers import CONFIGS, OBSERVATION_CONFIGS, seed_spaces, strict_warnings
+
+CHECKED = {**CONFIGS, **OBSERVATION_CONFIGS}
 
 # Parallel-API cycles per configuration: about the same simulated time for each (fixed-interval
 # steps are 30 s; event-driven steps about 15 s, shorter with 12 robots).
@@ -39,9 +41,14 @@ PARALLEL_CYCLES = {
     "dahl2004_homogeneous": 60,
     "three_circuits_12_robots": 80,
     "fixed_interval_30s": 30,
+    "paper_id_observations": 30,
+    "rich_observations": 30,
+    "box_observations": 30,
+    "rich_box_observations": 30,
+    "rich_fixed_interval": 20,
 }
 
-config_names = pytest.mark.parametrize("name", list(CONFIGS))
+config_names = pytest.mark.parametrize("name", list(CHECKED))
 
 
 def _seeded(factory: Any, **kwargs: Any) -> Any:
@@ -53,7 +60,7 @@ def _seeded(factory: Any, **kwargs: Any) -> Any:
 
 
 def _factories(name: str) -> tuple[Any, Any]:
-    kwargs = CONFIGS[name]
+    kwargs = CHECKED[name]
     return (
         functools.partial(_seeded, tavc_env.parallel_env, **kwargs),
         functools.partial(_seeded, tavc_env.env, **kwargs),

@@ -19,6 +19,7 @@ from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 import tavc_env
+from tavc_env import PHASES, completed_task_s
 from tavc_env.env import AecArenaEnv
 from tavc_env.twin import (
     InterferenceTables,
@@ -86,7 +87,7 @@ def completions(env: TwinArenaEnv, policy: Any, seed: int = 0) -> list[tuple[str
     while env.agents:
         obs, _, _, _, infos = env.step(policy(obs, infos, rng))
         for a, info in infos.items():
-            if info["task_time_s"] is not None:
+            if completed_task_s(info) is not None:
                 done.append((a, info["circuit"], info["task_time_s"]))
     return done
 
@@ -282,7 +283,7 @@ def test_robots_deciding_together_count_each_other_and_themselves() -> None:
         _, _, _, _, infos = env.step(actions)
         actions = {}
         for a, info in infos.items():
-            if info["task_time_s"] is not None and a not in done:
+            if completed_task_s(info) is not None and a not in done:
                 done[a] = info["task_time_s"]
             if info["action_required"]:
                 actions[a] = 1  # later tasks elsewhere, so the first ones are not disturbed
@@ -295,7 +296,10 @@ def test_robots_deciding_together_count_each_other_and_themselves() -> None:
 def test_commitments_and_state() -> None:
     env = twin()
     _, infos = env.reset(seed=2)
-    assert all(info["action_required"] and info["phase"] == "deciding" for info in infos.values())
+    assert all(
+        info["action_required"] and info["phase"] == PHASES.index("deciding")
+        for info in infos.values()
+    )
     assert env.state().shape == env.state_space.shape
     env.step({a: i % 2 for i, a in enumerate(env.agents)})
     committed = env.process.committed()
@@ -317,7 +321,7 @@ def test_rewards_are_w_over_t_in_the_envs_time_unit() -> None:
                 {a: 1 for a in env.agents if infos[a]["action_required"]}
             )
             for a, info in infos.items():
-                t = info["task_time_s"]
+                t = completed_task_s(info)
                 if t is None:
                     assert rewards[a] == 0.0
                 else:
@@ -378,13 +382,13 @@ def test_scheduled_breakdown_and_repair() -> None:
             broken_at = env.sim_time_s
             # a breakdown is no decision epoch: it shows at the end of the step it fell in
             assert before < 500.0 <= broken_at
-            assert info["phase"] == "broken" and not info["action_required"]
+            assert info["phase"] == PHASES.index("broken") and not info["action_required"]
             assert env.process.committed()[0].sum() == 5 - sum(
                 i["action_required"] for a, i in infos.items() if a != "robot_0"
             )
         if broken_at is not None and repaired_at is None and not info["broken"]:
             repaired_at = env.sim_time_s
-            assert info["action_required"] and info["task_time_s"] is None
+            assert info["action_required"] and completed_task_s(info) is None
     assert broken_at is not None
     assert repaired_at == pytest.approx(1400.0)  # a repair is one: the step ends there
 
@@ -397,7 +401,7 @@ def test_break_down_and_repair_through_the_env() -> None:
     assert env.process.committed()[0].sum() == 4  # five were working; robot_1 abandoned its task
     for _ in range(20):
         _, _, _, _, infos = env.step({a: 1 for a in env.agents if infos[a]["action_required"]})
-        assert infos["robot_1"]["broken"] and infos["robot_1"]["task_time_s"] is None
+        assert infos["robot_1"]["broken"] and completed_task_s(infos["robot_1"]) is None
     with pytest.raises(ValueError, match="a robot that is broken"):
         env.repair("robot_2")
     env.repair("robot_1")
@@ -411,7 +415,7 @@ def test_priority_changes_pay_the_new_values() -> None:
     env.set_circuit_values([100.0, 50.0])
     assert env.circuit_values == (100.0, 50.0)
     _, rewards, _, _, infos = env.step({a: 1 for a in env.agents})
-    paid = {a: r for a, r in rewards.items() if infos[a]["task_time_s"] is not None}
+    paid = {a: r for a, r in rewards.items() if completed_task_s(infos[a]) is not None}
     assert paid
     for a, r in paid.items():
         assert r == pytest.approx(50.0 / (infos[a]["task_time_s"] * 1e3))

@@ -35,6 +35,7 @@ from agents.allocators.threshold import ResponseThresholdAllocator
 from agents.experiments.runner import Event, TrialResult, run_trial
 from agents.model import Allocation, CompletionModel
 from agents.policy import Policy, Team
+from tavc_env import PHASES, completed_task_s
 
 T_FAST, T_SLOW = 60.0, 90.0
 VALUES = (2200.0, 2000.0)
@@ -102,7 +103,7 @@ def info(
     return {
         "action_required": task_time_s is not None,
         "circuit": circuit,
-        "phase": "broken" if broken else "deciding",
+        "phase": PHASES.index("broken" if broken else "deciding"),
         "broken": broken,
         "task_time_s": task_time_s,
         "elapsed_s": 0.0,
@@ -739,7 +740,7 @@ def run_until_deliveries(
         actions = {a: i["circuit"] for a, i in infos.items() if i["action_required"]}
         _, rewards, _, _, infos = env.step(actions)
         for agent, i in infos.items():
-            if i["task_time_s"] is not None:
+            if completed_task_s(i) is not None:
                 seen.append((rewards[agent], i["task_time_s"], i["circuit"]))
         if circuits <= {c for _, _, c in seen}:
             return seen, infos

@@ -25,6 +25,7 @@ import pytest
 
 import tavc_env
 from agents.studies import long_run as study
+from tavc_env import completed_task_s
 from tests.helpers import pairwise_min_distance, run_env
 
 DURATION_S = 1.5 * 3600
@@ -48,7 +49,7 @@ def test_random_choices_for_one_and_a_half_hours_keep_everyone_working() -> None
         assert rec.duration_s < env.step_cap_s
     for rec in run.steps:
         for i, agent in enumerate(env.possible_agents):
-            if rec.infos[agent]["task_time_s"] is not None:
+            if completed_task_s(rec.infos[agent]) is not None:
                 longest_gap[i] = max(longest_gap[i], rec.time_s - last_done[i])
                 last_done[i] = rec.time_s
                 completed[i] += 1

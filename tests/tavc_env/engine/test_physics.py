@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import tavc_env
+from tavc_env import PHASES, completed_task_s
 from tavc_env.engine.tasks import Mode, Phase
 from tests.helpers import (
     CONFIGS,
@@ -213,8 +214,8 @@ def test_broken_robot_stands_still_is_never_asked_and_frees_its_dock() -> None:
 
     def policy(obs: dict, infos: dict, rng: np.random.Generator) -> dict:
         info = infos[name]  # at every step: present, broken, not asked, not paid a task
-        assert info["phase"] == "broken" and info["broken"] is True
-        assert info["action_required"] is False and info["task_time_s"] is None
+        assert info["phase"] == PHASES.index("broken") and info["broken"] is True
+        assert info["action_required"] is False and completed_task_s(info) is None
         return constant_policy(0)(obs, infos, rng)
 
     def poke_the_broken_robot(obs: dict, infos: dict) -> dict:
@@ -224,8 +225,8 @@ def test_broken_robot_stands_still_is_never_asked_and_frees_its_dock() -> None:
     assert name in env.agents
     infos = result.infos
     info = infos[name]
-    assert info["phase"] == "broken" and info["broken"] is True
-    assert info["action_required"] is False and info["task_time_s"] is None
+    assert info["phase"] == PHASES.index("broken") and info["broken"] is True
+    assert info["action_required"] is False and completed_task_s(info) is None
     assert np.array_equal(env.sim.positions()[victim], frozen)
     done = env.sim.tasks.completed - done_before
     assert done[victim] == 0
@@ -243,7 +244,10 @@ def test_broken_robot_is_never_asked_over_a_run() -> None:
         actions = {a: int(rng.integers(2)) for a in env.agents if infos[a]["action_required"]}
         assert "robot_3" not in actions
         obs, rewards, _, _, infos = env.step(actions)
-        assert infos["robot_3"]["phase"] == "broken" and not infos["robot_3"]["action_required"]
+        assert (
+            infos["robot_3"]["phase"] == PHASES.index("broken")
+            and not infos["robot_3"]["action_required"]
+        )
         assert rewards["robot_3"] == 0.0
         assert np.array_equal(obs["robot_3"]["action_mask"], obs["robot_3"]["observation"])
         assert np.array_equal(env.sim.positions()[3], frozen)
@@ -263,12 +267,20 @@ def test_scheduled_breakdown_and_repair() -> None:
         obs, _, _, _, infos = env.step(actions)
         t, info = env.sim.time_s, infos["robot_0"]
         if t < 300.0 - 1e-9:
-            assert info["phase"] != "broken"
+            assert info["phase"] != PHASES.index("broken")
         elif t < 900.0 - 1e-9:
-            assert info["phase"] == "broken" and info["broken"] and not info["action_required"]
+            assert (
+                info["phase"] == PHASES.index("broken")
+                and info["broken"]
+                and not info["action_required"]
+            )
         elif repaired_at is None:
             repaired_at = t
-            assert info["action_required"] and info["phase"] == "deciding" and not info["broken"]
+            assert (
+                info["action_required"]
+                and info["phase"] == PHASES.index("deciding")
+                and not info["broken"]
+            )
             assert np.array_equal(obs["robot_0"]["action_mask"], [1, 1])
     assert repaired_at == pytest.approx(900.0)
     assert infos["robot_0"]["completed_tasks"] > 0
@@ -287,7 +299,9 @@ def test_manual_break_down_and_repair() -> None:
     before = env.sim.time_s
     _, _, _, _, infos = env.step({a: 1 for a in env.agents if infos[a]["action_required"]})
     assert env.sim.time_s - before == pytest.approx(env.config.dt), "the repair ends the step"
-    assert infos["robot_1"]["action_required"] and infos["robot_1"]["phase"] == "deciding"
+    assert infos["robot_1"]["action_required"] and infos["robot_1"]["phase"] == PHASES.index(
+        "deciding"
+    )
     # back to work: it completes a task on the circuit it chooses
     done = infos["robot_1"]["completed_tasks"]
     for _ in range(60):
