@@ -200,7 +200,9 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
                 {"observation": vector, "action_mask": spaces.Box(0, 1, (m,), np.int8)}
             )
         self._observation_spaces = {a: space for a in self.possible_agents}
-        self._action_spaces = {a: spaces.Discrete(m) for a in self.possible_agents}
+        self._action_spaces: dict[str, spaces.Space[Any]] = {
+            a: spaces.Discrete(m) for a in self.possible_agents
+        }
         self._busy_mask = [frozen(np.eye(m, dtype=np.int8)[c]) for c in range(m)]
         self._free_mask = frozen(np.ones(m, np.int8))
         per_robot = 6 + m + N_PHASES

@@ -24,9 +24,12 @@ LAYERS: list[tuple[int, str]] = [
     (0, "tavc_env.metrics"),
     (1, "tavc_env.engine"),
     (2, "tavc_env.render"),
+    (2, "tavc_env.observations"),
     (3, "tavc_env.env"),
     (3, "tavc_env.registration"),
+    (3, "tavc_env.v0"),
     (3, "tavc_env"),  # the package's __init__: the public API, re-exporting the env
+    (4, "tavc_env.adapters"),  # views of the env for learning libraries
     (4, "agents.policy"),
     (4, "agents.driver"),
     (4, "agents.model"),

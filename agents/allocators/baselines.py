@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.policy import allowed_actions, generator
+from agents.policy import allowed_actions, generator, state_of
 
 
 class NonLearning:
@@ -58,3 +58,20 @@ class FixedAllocator(NonLearning):
                 "allocator can only be asked when every circuit is allowed"
             )
         return self.circuit
+
+
+class StayAllocator(NonLearning):
+    """Keep serving the circuit last served (the paper's observation): the start's allocation,
+    held. Where the reset already spreads the robots well, a strong and trivial baseline."""
+
+    def reset(self, rng: np.random.Generator, n_actions: int) -> None:
+        return None
+
+    def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
+        last = state_of(observation)
+        if not action_mask[last]:
+            raise ValueError(
+                f"the last circuit {last} is masked out (mask {action_mask.tolist()}); allowed: a "
+                "mask that allows the robot's last circuit"
+            )
+        return last

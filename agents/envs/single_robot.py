@@ -53,7 +53,7 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
         m = self.env.config.n_circuits
         self.observation_space = spaces.Box(0.0, 1.0, (m,), np.float32)
         self.n_circuits = m
-        self.action_space: spaces.Discrete = spaces.Discrete(m)  # type: ignore[assignment]
+        self.action_space: spaces.Discrete = spaces.Discrete(m)  # type: ignore[assignment, type-arg, unused-ignore]
         self._driver = PolicyDriver({})
         self._obs: dict[str, Any] = {}
         self._infos: dict[str, Any] = {}

@@ -12,10 +12,11 @@ import inspect
 from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
 
-from agents.allocators.baselines import FixedAllocator, RandomAllocator
+from agents.allocators.baselines import FixedAllocator, RandomAllocator, StayAllocator
 from agents.allocators.market import AuctionAllocator
 from agents.allocators.teams import GreedyAllocator, StaticAllocator
 from agents.allocators.threshold import ResponseThresholdAllocator
+from agents.learners.network import NetworkTeam
 from agents.learners.tavc import epsilon_tavc, softmax_tavc
 from agents.policy import Policy, Team
 
@@ -24,6 +25,7 @@ POLICIES: Mapping[str, Callable[..., Policy]] = {
     "epsilon_tavc": epsilon_tavc,
     "random": RandomAllocator,
     "fixed": FixedAllocator,
+    "stay": StayAllocator,
 }
 
 TEAMS: Mapping[str, Callable[..., Team]] = {
@@ -31,6 +33,7 @@ TEAMS: Mapping[str, Callable[..., Team]] = {
     "greedy": GreedyAllocator,
     "auction": AuctionAllocator,
     "response_threshold": ResponseThresholdAllocator,
+    "network": NetworkTeam,
 }
 
 ALLOCATORS = sorted({*POLICIES, *TEAMS})

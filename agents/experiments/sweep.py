@@ -548,7 +548,7 @@ def _run_on_ray(
             try:
                 result = ray.get(ref)
             except ray.exceptions.RayTaskError as error:
-                fail(job, error.as_instanceof_cause())  # type: ignore[no-untyped-call]
+                fail(job, error.as_instanceof_cause())
             except ray.exceptions.RayError as error:
                 fail(job, error)
             else:

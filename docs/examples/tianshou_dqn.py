@@ -35,8 +35,8 @@ REWARD_SCALE = 100.0
 
 
 class Scaled(SingleRobotEnv):
-    """Rewards scaled; info entries that are None (no task completed) left out, since Tianshou
-    stores infos in its replay buffer as numbers and rejects the resulting NaNs."""
+    """Rewards scaled; infos kept to their plain numbers (Tianshou stores them in its replay
+    buffer; the action mask, an array, is not needed there)."""
 
     def reset(self, *, seed=None, options=None):  # type: ignore[override]
         obs, info = super().reset(seed=seed, options=options)

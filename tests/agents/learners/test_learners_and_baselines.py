@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pytest
 
-from agents.allocators.baselines import FixedAllocator, RandomAllocator
+from agents.allocators.baselines import FixedAllocator, RandomAllocator, StayAllocator
 from agents.experiments.registry import ALLOCATORS, make_allocator, make_policy
 from agents.learners.selection import EpsilonGreedy, Softmax, sample
 from agents.learners.tavc import TavcLearner, TavcParams, epsilon_tavc, softmax_tavc
@@ -462,8 +462,23 @@ def test_fixed_allocator() -> None:
         policy.act(onehot(0), np.array([1, 0], np.int8))
 
 
+def test_stay_allocator_keeps_the_last_circuit() -> None:
+    policy = make_policy("stay")
+    assert isinstance(policy, StayAllocator)
+    policy.reset(np.random.default_rng(0), 3)
+    assert [policy.act(onehot(c, 3), np.ones(3, np.int8)) for c in (2, 0, 1)] == [2, 0, 1]
+    with pytest.raises(ValueError, match="last circuit 1 is masked out"):
+        policy.act(onehot(1, 3), np.array([1, 0, 1], np.int8))
+
+
 def test_policy_protocol_and_helpers() -> None:
-    for policy in (softmax_tavc(), epsilon_tavc(), RandomAllocator(), FixedAllocator(circuit=0)):
+    for policy in (
+        softmax_tavc(),
+        epsilon_tavc(),
+        RandomAllocator(),
+        FixedAllocator(circuit=0),
+        StayAllocator(),
+    ):
         assert isinstance(policy, Policy)
     assert state_of(onehot(1, 3)) == 1
     assert allowed_actions(np.array([0, 1, 1], np.int8)).tolist() == [1, 2]
@@ -475,10 +490,12 @@ def test_registry_builds_configured_policies() -> None:
         "epsilon_tavc",
         "random",
         "fixed",
+        "stay",
         "static",
         "greedy",
         "auction",
         "response_threshold",
+        "network",
     }
     soft = make_policy("softmax_tavc", temperature=0.01, init="paper")
     assert isinstance(soft, TavcLearner)
