@@ -24,6 +24,15 @@ from agents.experiments.runner import run_trial
 from agents.learners.network import Mlp, NetworkTeam
 from tavc_env._validation import is_number, require
 
+# Rewards are w / t with t in ms (about 0.03): the examples scale them so that networks see O(1).
+REWARD_SCALE = 100.0
+
+
+def training_arena(preset: str) -> dict[str, Any]:
+    """The examples' training arena: `preset`, `paper_id` observations (a network shared by all
+    robots tells them apart), 6-hour episodes."""
+    return {"preset": preset, "observation_mode": "paper_id", "max_sim_time_s": 6 * 3600.0}
+
 
 @dataclass(frozen=True)
 class Evaluation:

@@ -29,16 +29,20 @@ from ray.rllib.examples.rl_modules.classes.action_masking_rlm import ActionMaski
 from ray.tune.registry import register_env
 
 from agents.learners.network import Mlp
-from agents.studies.learning_runs import LearningRun, write_learning_run
+from agents.studies.learning_runs import (
+    REWARD_SCALE,
+    LearningRun,
+    training_arena,
+    write_learning_run,
+)
 from tavc_env.adapters.rllib import RllibArenaEnv
 
-ENV = {"preset": "dahl2004", "observation_mode": "paper_id", "max_sim_time_s": 6 * 3600.0}
 MODEL = {"fcnet_hiddens": [64, 64], "fcnet_activation": "tanh", "vf_share_layers": False}
-REWARD_SCALE = 100.0  # rewards are w / t with t in ms (about 0.03): scaled so the network sees O(1)
 
 
 def make_env(config: dict[str, Any]) -> RllibArenaEnv:
-    return RllibArenaEnv({**ENV, "reward_scale": REWARD_SCALE, **config})
+    preset = str(config.get("preset", "dahl2004"))
+    return RllibArenaEnv({**training_arena(preset), "reward_scale": REWARD_SCALE})
 
 
 def network(module: Any) -> Mlp:
@@ -59,6 +63,7 @@ def train(
     seed: int = 0,
     eval_hours: float = 2.0,
     final_seeds: int = 10,
+    preset: str = "dahl2004",
 ) -> LearningRun:
     """`iterations` PPO updates on `batch` robot decisions each; evaluate every `eval_every`."""
     torch.set_num_threads(1)
@@ -66,7 +71,7 @@ def train(
     register_env("tavc_deciders", make_env)
     config = (
         PPOConfig()
-        .environment("tavc_deciders", env_config={})
+        .environment("tavc_deciders", env_config={"preset": preset})
         .env_runners(num_env_runners=0, rollout_fragment_length="auto")
         .multi_agent(policies={"shared"}, policy_mapping_fn=lambda agent, *args, **kw: "shared")
         .rl_module(
@@ -89,9 +94,18 @@ def train(
         .debugging(seed=seed)
     )
     algo = config.build_algo()
-    settings = {"iterations": iterations, "batch": batch, "seed": seed, "eval_hours": eval_hours}
+    settings = {
+        "preset": preset,
+        "iterations": iterations,
+        "batch": batch,
+        "seed": seed,
+        "eval_hours": eval_hours,
+    }
     run = LearningRun(
-        "rllib_ppo", "RLlib PPO, deciders only, one policy for all robots", ENV, settings
+        "rllib_ppo",
+        "RLlib PPO, deciders only, one policy for all robots",
+        training_arena(preset),
+        settings,
     )
     for k in range(1, iterations + 1):
         result = algo.train()
@@ -112,10 +126,11 @@ def main(
     seed: int = 0,
     eval_hours: float = 2.0,
     final_seeds: int = 10,
+    preset: str = "dahl2004",
     out: Path = Path("rllib_ppo"),
 ) -> None:
     """Train, evaluate, and write the learning curve, the evaluation and the network to `out`."""
-    run = train(iterations, batch, eval_every, seed, eval_hours, final_seeds)
+    run = train(iterations, batch, eval_every, seed, eval_hours, final_seeds, preset)
     for path in write_learning_run(run, out):
         print(f"wrote {path}")
 

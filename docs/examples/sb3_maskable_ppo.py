@@ -23,11 +23,13 @@ import tyro
 from sb3_contrib import MaskablePPO
 
 from agents.learners.network import Mlp
-from agents.studies.learning_runs import LearningRun, write_learning_run
+from agents.studies.learning_runs import (
+    REWARD_SCALE,
+    LearningRun,
+    training_arena,
+    write_learning_run,
+)
 from tavc_env.adapters.sb3 import SharedPolicyVecEnv
-
-ENV = {"preset": "dahl2004", "observation_mode": "paper_id", "max_sim_time_s": 6 * 3600.0}
-REWARD_SCALE = 100.0  # rewards are w / t with t in ms (about 0.03): scaled so the network sees O(1)
 
 
 def network(model: MaskablePPO) -> Mlp:
@@ -42,15 +44,17 @@ def train(
     seed: int = 0,
     eval_hours: float = 2.0,
     final_seeds: int = 10,
+    preset: str = "dahl2004",
 ) -> LearningRun:
     """Train for `steps` env steps in `chunks`, evaluating the greedy network after each."""
     torch.manual_seed(seed)
     torch.set_num_threads(1)
-    venv = SharedPolicyVecEnv(n_envs=2, reward_scale=REWARD_SCALE, **ENV)
+    venv = SharedPolicyVecEnv(n_envs=2, reward_scale=REWARD_SCALE, **training_arena(preset))
     model = MaskablePPO(
         "MlpPolicy", venv, n_steps=128, batch_size=256, n_epochs=4, gamma=0.9, seed=seed, verbose=0
     )
     settings = {
+        "preset": preset,
         "steps": steps,
         "chunks": chunks,
         "seed": seed,
@@ -58,7 +62,10 @@ def train(
         "n_envs": 2,
     }
     run = LearningRun(
-        "sb3_maskable_ppo", "SB3 MaskablePPO, one network for all robots", ENV, settings
+        "sb3_maskable_ppo",
+        "SB3 MaskablePPO, one network for all robots",
+        training_arena(preset),
+        settings,
     )
     for k in range(1, chunks + 1):
         model.learn(total_timesteps=steps * venv.num_envs // chunks, reset_num_timesteps=False)
@@ -73,10 +80,11 @@ def main(
     seed: int = 0,
     eval_hours: float = 2.0,
     final_seeds: int = 10,
+    preset: str = "dahl2004",
     out: Path = Path("sb3_maskable_ppo"),
 ) -> None:
     """Train, evaluate, and write the learning curve, the evaluation and the network to `out`."""
-    run = train(steps, chunks, seed, eval_hours, final_seeds)
+    run = train(steps, chunks, seed, eval_hours, final_seeds, preset)
     for path in write_learning_run(run, out):
         print(f"wrote {path}")
 

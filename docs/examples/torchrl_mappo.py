@@ -30,16 +30,21 @@ from torchrl.objectives import ClipPPOLoss, ValueEstimators
 
 import tavc_env
 from agents.learners.network import Mlp
-from agents.studies.learning_runs import LearningRun, write_learning_run
+from agents.studies.learning_runs import (
+    REWARD_SCALE,
+    LearningRun,
+    training_arena,
+    write_learning_run,
+)
 
-ENV = {"preset": "dahl2004", "observation_mode": "paper_id", "max_sim_time_s": 6 * 3600.0}
 GROUP = "robot"  # TorchRL's default group of robot_0 .. robot_5
 OBS = (GROUP, "observation", "observation")  # the Dict's vector; its mask is (GROUP, "action_mask")
-REWARD_SCALE = 100.0  # rewards are w / t with t in ms (about 0.03): scaled so the networks see O(1)
 
 
-def make_env(seed: int) -> TransformedEnv:
-    env = PettingZooWrapper(tavc_env.parallel_env(**ENV), categorical_actions=True, seed=seed)
+def make_env(seed: int, preset: str = "dahl2004") -> TransformedEnv:
+    env = PettingZooWrapper(
+        tavc_env.parallel_env(**training_arena(preset)), categorical_actions=True, seed=seed
+    )
     return TransformedEnv(env, RewardScaling(0.0, REWARD_SCALE, in_keys=[(GROUP, "reward")]))
 
 
@@ -99,16 +104,26 @@ def train(
     seed: int = 0,
     eval_hours: float = 2.0,
     final_seeds: int = 10,
+    preset: str = "dahl2004",
 ) -> LearningRun:
     """Train for `frames` env steps, `batch` per PPO update; evaluate every `eval_every` batches."""
     torch.manual_seed(seed)
     torch.set_num_threads(1)
-    env = make_env(seed)
+    env = make_env(seed, preset)
     actor, loss, actor_net = make_mappo(env)
     optimiser = torch.optim.Adam(loss.parameters(), 3e-4)
-    settings = {"frames": frames, "batch": batch, "seed": seed, "eval_hours": eval_hours}
+    settings = {
+        "preset": preset,
+        "frames": frames,
+        "batch": batch,
+        "seed": seed,
+        "eval_hours": eval_hours,
+    }
     run = LearningRun(
-        "torchrl_mappo", "TorchRL MAPPO, shared actor, centralised critic", ENV, settings
+        "torchrl_mappo",
+        "TorchRL MAPPO, shared actor, centralised critic",
+        training_arena(preset),
+        settings,
     )
     collector = Collector(env, actor, frames_per_batch=batch, total_frames=frames)
     for k, data in enumerate(collector, start=1):
@@ -140,10 +155,11 @@ def main(
     seed: int = 0,
     eval_hours: float = 2.0,
     final_seeds: int = 10,
+    preset: str = "dahl2004",
     out: Path = Path("torchrl_mappo"),
 ) -> None:
     """Train, evaluate, and write the learning curve, the evaluation and the network to `out`."""
-    run = train(frames, batch, eval_every, seed, eval_hours, final_seeds)
+    run = train(frames, batch, eval_every, seed, eval_hours, final_seeds, preset)
     for path in write_learning_run(run, out):
         print(f"wrote {path}")
 
