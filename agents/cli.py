@@ -28,7 +28,7 @@ from agents.experiments.files import check_writable
 from agents.experiments.provenance import load_provenance
 from agents.experiments.registry import ALLOCATORS, TEAMS, make_allocator
 from agents.experiments.runner import TrialResult, run_trial
-from agents.studies.common import RESULTS_DIR, arena_overrides, parse_key_values, parse_settings
+from agents.studies.common import RESULTS_DIR, arena_overrides, parse_key_values, run_study
 from tavc_env import PRESETS, make_config, metrics
 
 NEEDS_MODEL = ("static", "greedy", "auction")
@@ -240,10 +240,7 @@ def _existing(path: str | Path) -> Path:
 def _run_study(name: str, argv: Sequence[str]) -> int:
     """Run study `name` with command-line arguments `argv`, as `benchmarks/<name>.py` does."""
     module = studies.load(name)
-    settings = parse_settings(module.Settings, argv, module.__doc__ or name)
-    outcome = module.run(settings)
-    print(outcome.text)
-    return 1 if getattr(outcome, "failed", None) else 0  # e.g. a long run that found a gap
+    return run_study(module, argv, module.__doc__ or name)
 
 
 def parser() -> argparse.ArgumentParser:

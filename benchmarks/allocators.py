@@ -5,7 +5,7 @@ the model's slot values and static at the model optimum: 10 trials each per pres
 measured. Reports delivered value (also as a fraction of the model optimum), the model value of
 the allocation held, switches per robot per hour and time to settle, with 95 % intervals. Writes
 allocators.{md,csv,json}, trials.csv and allocators.png into benchmarks/results/allocators/ (or
---out); trials are kept in cache/ so a rerun resumes. Needs the models of the tavc_model study.
+--out); trials are kept in cache/ so `--resume RUN_DIR` continues an interrupted run. Needs the models of the tavc_model study.
 The study is agents.studies.allocators.
 
     python benchmarks/allocators.py
@@ -17,14 +17,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from agents.studies import allocators as study
-from agents.studies.common import parse_settings
+from agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings = parse_settings(study.Settings, argv, __doc__ or "")
-    outcome = study.run(settings)
-    print(outcome.text)
-    return 0
+    return run_study(study, argv, __doc__ or "")
 
 
 if __name__ == "__main__":

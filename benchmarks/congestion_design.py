@@ -18,13 +18,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from agents.studies import congestion_design as study
-from agents.studies.common import parse_settings
+from agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings = parse_settings(study.Settings, argv, __doc__ or "")
-    print(study.run(settings).text)
-    return 0
+    return run_study(study, argv, __doc__ or "")
 
 
 if __name__ == "__main__":

@@ -9,8 +9,8 @@ For each physics step `dt` (default 0.05, 0.1, 0.2 and 0.25 s) and each seed:
 Each quantity at each dt is compared with the finest step (a ratio of seed means with a 95 %
 interval, `agents.analysis.stats.ratio_ci`); a step passes when every quantity is within
 `--tolerance` (3 %) of the finest. The package's default step is the largest that passes. Outputs
-in `benchmarks/results/dt_fidelity/` (or `--out`): `dt_fidelity.{md,csv,json}`; runs are kept in
-`cache/` as they finish, so a rerun resumes. The study is `agents.studies.dt_fidelity`.
+in `benchmarks/results/dt_fidelity/` (the committed reference; a run writes into a new `runs/` folder unless `--update-reference` or `--out`): `dt_fidelity.{md,csv,json}`; runs are kept in
+`cache/` as they finish, so `--resume RUN_DIR` continues an interrupted run. The study is `agents.studies.dt_fidelity`.
 
     python benchmarks/dt_fidelity.py            # 160 runs of 3 simulated h, ~4 min on 2 cores
     python benchmarks/dt_fidelity.py --quick
@@ -21,14 +21,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from agents.studies import dt_fidelity as study
-from agents.studies.common import parse_settings
+from agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings = parse_settings(study.Settings, argv, __doc__ or "")
-    outcome = study.run(settings)
-    print(outcome.text)
-    return 0
+    return run_study(study, argv, __doc__ or "")
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ the wall time. Exits with status 1 if any trial has an unreported jam: a robot l
 
 Writes `liveness.{md,csv,json}` (one CSV row per trial) and `provenance.json` into `--out`
 (default benchmarks/results/liveness/); each trial is kept as a small record in `--out`/trials/
-as it finishes, so a rerun resumes (`--workers`, `--backend local|ray`). The study is
+as it finishes, so `--resume RUN_DIR` continues an interrupted run (`--workers`, `--backend local|ray`). The study is
 `agents.studies.liveness`.
 
     python benchmarks/liveness.py                 # 156 trials, ~5 min on one core
@@ -23,20 +23,14 @@ as it finishes, so a rerun resumes (`--workers`, `--backend local|ray`). The stu
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Sequence
 
 from agents.studies import liveness as study
-from agents.studies.common import parse_settings
+from agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings = parse_settings(study.Settings, argv, __doc__ or "")
-    outcome = study.run(settings)
-    print(outcome.text)
-    for line in study.failure_lines(outcome):
-        print(line, file=sys.stderr)
-    return 1 if outcome.failed else 0
+    return run_study(study, argv, __doc__ or "")
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ minutes): a robot that stops completing tasks is a jam or a stuck robot.
 Writes `long_run.{csv,md,json}` (per robot summary) and `long_run_tasks_seed<S>.csv` (every
 completion, written as the run goes) into `--out` (default benchmarks/results/). Seeds run through
 the package's sweep runner (`--workers`, `--backend local|ray`) and are kept in
-`--out`/cache/long_run/, so a rerun resumes. The study is `agents.studies.long_run`.
+`--out`/cache/long_run/, so `--resume RUN_DIR` continues an interrupted run. The study is `agents.studies.long_run`.
 
     python benchmarks/long_run.py                 # 15 simulated hours, seeds 0-3 (~1-2 min wall)
     python benchmarks/long_run.py --quick         # smoke run
@@ -22,20 +22,14 @@ the package's sweep runner (`--workers`, `--backend local|ray`) and are kept in
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Sequence
 
 from agents.studies import long_run as study
-from agents.studies.common import parse_settings
+from agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings = parse_settings(study.Settings, argv, __doc__ or "")
-    outcome = study.run(settings)
-    print(outcome.text)
-    for line in study.failure_lines(outcome):
-        print(line, file=sys.stderr)
-    return 1 if outcome.failed else 0
+    return run_study(study, argv, __doc__ or "")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ each arena's e and twin tables, then runs 400 physics trials (15 h + 5 h) in eac
 decides the question (softmax T = 0.005 and 0.01 on dahl2004_congestion and dahl2004), 60 in
 every other cell and 100 twin trials per cell. Writes `regime_map.{md,csv,json,png}` and
 `provenance.json` into `--out` (default benchmarks/results/regime_map/); every trial is kept as a
-compact record under `--out`/trials/ as it finishes, so a rerun resumes. The study is
+compact record under `--out`/trials/ as it finishes, so `--resume RUN_DIR` continues an interrupted run. The study is
 `agents.studies.regime_map`.
 
     python benchmarks/regime_map.py --workers 2     # about 3520 physics trials: many hours
@@ -19,13 +19,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from agents.studies import regime_map as study
-from agents.studies.common import parse_settings
+from agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings = parse_settings(study.Settings, argv, __doc__ or "")
-    print(study.run(settings).text)
-    return 0
+    return run_study(study, argv, __doc__ or "")
 
 
 if __name__ == "__main__":

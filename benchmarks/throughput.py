@@ -29,14 +29,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from agents.studies import throughput as study
-from agents.studies.common import parse_settings
+from agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings = parse_settings(study.Settings, argv, __doc__ or "")
-    outcome = study.run(settings)
-    print(outcome.text)
-    return 0
+    return run_study(study, argv, __doc__ or "")
 
 
 if __name__ == "__main__":

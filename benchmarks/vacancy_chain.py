@@ -4,8 +4,8 @@ After 15 h on `dahl2004` a fast robot on the high-value circuit breaks down, 3 h
 repaired, 3 h later the circuits' values swap; a paired control trial without events runs beside
 each. Reports per allocator how fast the vacancy is refilled (and by whom), the value lost, and
 how well the allocation follows the priority change. Writes vacancy_chain.{md,csv,json},
-trials.csv and timeline.png into benchmarks/results/vacancy_chain/ (or --out); trials are kept in
-cache/ so a rerun resumes. Needs the dahl2004 model of the tavc_model study. The study is
+trials.csv and timeline.png into benchmarks/results/vacancy_chain/ (the committed reference; a run writes into a new runs/ folder unless --update-reference or --out); trials are kept in
+cache/ so `--resume RUN_DIR` continues an interrupted run. Needs the dahl2004 model of the tavc_model study. The study is
 agents.studies.vacancy_chain.
 
     python benchmarks/vacancy_chain.py
@@ -17,14 +17,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from agents.studies import vacancy_chain as study
-from agents.studies.common import parse_settings
+from agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    settings = parse_settings(study.Settings, argv, __doc__ or "")
-    outcome = study.run(settings)
-    print(outcome.text)
-    return 0
+    return run_study(study, argv, __doc__ or "")
 
 
 if __name__ == "__main__":

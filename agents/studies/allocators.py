@@ -14,7 +14,7 @@ trials:
 * time to settle: the start of the first 2-hour window in which the mean model value of the current
   allocation is within 3 % of its measured-period mean (never: `inf`).
 
-Outputs in `benchmarks/results/allocators/` (or `--out`): `allocators.{md,csv,json}` (summary),
+Outputs in `benchmarks/results/allocators/` (the committed reference; a run writes into a new `runs/` folder unless `--update-reference` or `--out`): `allocators.{md,csv,json}` (summary),
 `trials.csv` (every trial's measures, with the preset, allocator and seed that rebuild it),
 `allocators.png` (bar plot). Trials are kept under `cache/` as they finish (not committed), so an
 interrupted run resumes; `reproduce_rows` re-runs a sample of them against `trials.csv`.
@@ -103,9 +103,7 @@ class Settings(SweepOptions):
             return self
         return dataclasses.replace(self, trials=2, convergence_h=1.0, measured_h=1.0)
 
-    def out_dir(self) -> Path:
-        if self.out is not None:
-            return self.out
+    def reference_dir(self) -> Path:
         return RESULTS_DIR / ("allocators_quick" if self.quick else "allocators")
 
     def recorded(self) -> dict[str, Any]:

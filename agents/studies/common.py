@@ -1,5 +1,7 @@
-"""What every study shares: the sweep options of its settings, `KEY=VALUE` arena overrides, the
-default results folder, and running its trials with their provenance recorded.
+"""What every study shares: the sweep options of its settings (where it writes: a new run folder by
+default, never the committed reference results unless asked), `KEY=VALUE` arena overrides,
+running its trials with their provenance recorded, and the command line every benchmark script
+and `tavc bench` share (`run_study`).
 
 A study module defines a frozen `Settings` dataclass (the study's command line, through
 `parse_settings`, and what its report records), the trials it runs, and the report it writes.
@@ -7,11 +9,15 @@ A study module defines a frozen `Settings` dataclass (the study's command line, 
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import datetime as _dt
 import json
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 from typing import Annotated, Any, Literal, TypeVar
 
 import tyro
@@ -21,6 +27,10 @@ from agents.experiments.runner import TrialResult
 from agents.experiments.sweep import TRIALS, TrialSpec
 
 RESULTS_DIR = PACKAGE_ROOT / "benchmarks" / "results"
+"""The committed reference results (changed only with `--update-reference`)."""
+RUNS_DIR = Path("runs")
+"""Where a study writes by default: `runs/<study>-<UTC time>/` under the working directory
+(ignored by git in a checkout)."""
 
 Overrides = Annotated[tuple[str, ...], tyro.conf.UseAppendAction]
 """The type of a study's `set` field: arena overrides `KEY=VALUE`, one per `--set` (repeatable)."""
@@ -36,11 +46,68 @@ class SweepOptions:
     """local process pool, or Ray tasks (pip install 'tavc-env[ray]'; set RAY_ADDRESS to use a
     cluster); results and resume are the same either way"""
     out: Path | None = None
-    """output folder (default: under benchmarks/results/)"""
+    """output folder (default: a new run folder runs/<study>-<time>/, which git ignores)"""
+    resume: Path | None = None
+    """continue an unfinished run in its folder (trials already saved there are not rerun)"""
+    update_reference: bool = False
+    """write into the committed reference results (benchmarks/results/...) instead of a run folder"""
+    run_dir: tyro.conf.Suppress[Path | None] = None
+    """the new run folder, chosen once when the settings are made (none with --out, --resume or
+    --update-reference)"""
 
     def __post_init__(self) -> None:
         if self.workers is not None and (not isinstance(self.workers, int) or self.workers < 1):
             raise ValueError(f"workers = {self.workers!r} is invalid; allowed: an integer >= 1")
+        given = [
+            name
+            for name, value in (
+                ("--out", self.out),
+                ("--resume", self.resume),
+                ("--update-reference", self.update_reference or None),
+            )
+            if value is not None
+        ]
+        if len(given) > 1:
+            raise ValueError(
+                f"{' and '.join(given)} are invalid together; allowed: at most one of --out "
+                "(a folder of your choice), --resume (an earlier run's folder), "
+                "--update-reference"
+            )
+        if self.resume is not None and not Path(self.resume).is_dir():
+            raise ValueError(
+                f"--resume {str(self.resume)!r} is invalid; allowed: the folder of an earlier run "
+                "(there is no such folder)"
+            )
+        if not given and self.run_dir is None:
+            reference = self.reference_dir()
+            name = reference.name if reference != RESULTS_DIR else type(self).__module__
+            object.__setattr__(self, "run_dir", new_run_dir(name.rpartition(".")[2]))
+
+    def reference_dir(self) -> Path:
+        """The study's committed reference results (each study names its folder)."""
+        return RESULTS_DIR
+
+    def out_dir(self) -> Path:
+        """Where this run writes: `--update-reference`, `--resume`, `--out`, or a new run folder."""
+        if self.update_reference:
+            return self.reference_dir()
+        if self.resume is not None:
+            return Path(self.resume)
+        if self.out is not None:
+            return Path(self.out)
+        assert self.run_dir is not None
+        return self.run_dir
+
+
+def new_run_dir(study: str) -> Path:
+    """A run folder that does not exist yet: `runs/<study>-<UTC time>[-k]`."""
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    folder = RUNS_DIR / f"{study}-{stamp}"
+    k = 1
+    while folder.exists():
+        k += 1
+        folder = RUNS_DIR / f"{study}-{stamp}-{k}"
+    return folder
 
 
 def parse_key_values(items: Sequence[str], option: str, example: str) -> dict[str, Any]:
@@ -109,3 +176,75 @@ def run_trials(
         backend=options.backend,
         wall_of=lambda result: result.wall_s,
     )
+
+
+# -- the command line of every study ----------------------------------------------------------------
+def run_study(module: ModuleType, argv: Sequence[str] | None, description: str) -> int:
+    """Parse a study's settings from `argv`, say where it writes, run it, print its results table,
+    where it wrote, and whether its tables agree with the committed reference. The exit code is
+    1 if the study says it failed (`outcome.failed`, e.g. a long run that found a gap)."""
+    settings = parse_settings(module.Settings, argv, description)
+    out = settings.out_dir()
+    print(f"Writing to {out}/", flush=True)
+    outcome = module.run(settings)
+    print(outcome.text)
+    for line in getattr(module, "failure_lines", lambda _: [])(outcome):
+        print(line, file=sys.stderr)
+    print(f"\nResults in {outcome.out_dir}/")
+    reference = settings.reference_dir()
+    if Path(outcome.out_dir).resolve() != reference.resolve():
+        compare = getattr(module, "agreement", compare_tables)
+        for line in compare(Path(outcome.out_dir), reference):
+            print(line)
+    return 1 if getattr(outcome, "failed", False) else 0
+
+
+def compare_tables(out: Path, reference: Path) -> list[str]:
+    """Whether each report table written in `out` equals the committed reference's, cell by cell.
+    A report table is a CSV beside a JSON report (`name.csv`, `name.json`) whose metadata records
+    the settings; tables of runs with other settings than the reference's are not compared."""
+    lines = []
+    for fresh in sorted(out.glob("*.csv")):
+        ref = reference / fresh.name
+        mine, theirs = recorded_settings(fresh), recorded_settings(ref)
+        if not ref.is_file() or mine is None or theirs is None:
+            continue
+        if mine != theirs:
+            changed = sorted(k for k in {*mine, *theirs} if mine.get(k) != theirs.get(k))
+            lines.append(
+                f"{fresh.name}: not compared with the committed reference {ref}: other settings "
+                f"({', '.join(changed)})"
+            )
+            continue
+        differ, total = differing_cells(fresh, ref)
+        verdict = "identical to" if differ == 0 else f"{differ} of {total} cells differ from"
+        lines.append(f"{fresh.name}: {verdict} the committed reference {ref}")
+    return lines or [f"No committed reference report to compare with in {reference}/."]
+
+
+def recorded_settings(table: Path) -> dict[str, Any] | None:
+    """The settings recorded in the JSON report beside the CSV `table` (None if there is none),
+    without the output folder (where, not what)."""
+    report = table.with_suffix(".json")
+    if not report.is_file():
+        return None
+    try:
+        settings = json.loads(report.read_text(encoding="utf-8"))["metadata"]["settings"]
+    except (ValueError, KeyError, TypeError):
+        return None
+    return {k: v for k, v in settings.items() if k != "out"} if isinstance(settings, dict) else None
+
+
+def differing_cells(a: Path, b: Path) -> tuple[int, int]:
+    """How many cells of CSV `a` differ from CSV `b` (cells of rows or columns only one has
+    count as differing), and how many cells the larger has."""
+    rows_a = list(csv.reader(a.read_text(encoding="utf-8").splitlines()))
+    rows_b = list(csv.reader(b.read_text(encoding="utf-8").splitlines()))
+    differ = total = 0
+    for k in range(max(len(rows_a), len(rows_b))):
+        ra = rows_a[k] if k < len(rows_a) else []
+        rb = rows_b[k] if k < len(rows_b) else []
+        for j in range(max(len(ra), len(rb))):
+            total += 1
+            differ += (ra[j] if j < len(ra) else None) != (rb[j] if j < len(rb) else None)
+    return differ, total

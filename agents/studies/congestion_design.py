@@ -122,9 +122,9 @@ class Settings(SweepOptions):
         candidates = SEARCHES[self.search]
         return candidates[::6] if self.quick else candidates
 
-    def out_dir(self) -> Path:
+    def reference_dir(self) -> Path:
         suffix = "" if self.search == "governor_loading" else f"_{self.search}"
-        return self.out or RESULTS_DIR / f"congestion_design{suffix}"
+        return RESULTS_DIR / f"congestion_design{suffix}"
 
     def recorded(self) -> dict[str, Any]:
         s = self.sized()

@@ -107,10 +107,8 @@ class Settings(SweepOptions):
             self, trials=2, convergence_h=0.3, measured_h=0.2, temperatures=first_two
         )
 
-    def out_dir(self) -> Path:
-        return self.out or RESULTS_DIR / (
-            "differentiation_quick" if self.quick else "differentiation"
-        )
+    def reference_dir(self) -> Path:
+        return RESULTS_DIR / ("differentiation_quick" if self.quick else "differentiation")
 
     def recorded(self) -> dict[str, Any]:
         s = self.sized()

@@ -67,8 +67,8 @@ class Settings(SweepOptions):
         """These settings with `--quick`'s sizes applied."""
         return replace(self, seeds=2, hours=0.3) if self.quick else self
 
-    def out_dir(self) -> Path:
-        return self.out or RESULTS_DIR / "dt_fidelity"
+    def reference_dir(self) -> Path:
+        return RESULTS_DIR / "dt_fidelity"
 
     def recorded(self) -> dict[str, Any]:
         """What the report records as the settings (as text; the sizes `--quick` applies

@@ -131,8 +131,8 @@ class Settings(SweepOptions):
             return self
         return replace(self, seeds=2, hours=0.12, warmup_min=0.5, skip_first=1)
 
-    def out_dir(self) -> Path:
-        return self.out or RESULTS_DIR
+    def reference_dir(self) -> Path:
+        return RESULTS_DIR
 
     def recorded(self) -> dict[str, Any]:
         """What the report records as the settings (the sizes `--quick` applies included)."""

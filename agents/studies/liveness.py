@@ -144,9 +144,7 @@ class Settings(SweepOptions):
             random_seeds=1,
         )
 
-    def out_dir(self) -> Path:
-        if self.out is not None:
-            return self.out
+    def reference_dir(self) -> Path:
         return RESULTS_DIR / ("liveness_quick" if self.quick else "liveness")
 
     def recorded(self) -> dict[str, Any]:

@@ -73,8 +73,8 @@ class Settings(SweepOptions):
     def seed_list(self) -> list[int]:
         return list(range(self.seed0, self.seed0 + self.seeds))
 
-    def out_dir(self) -> Path:
-        return self.out or RESULTS_DIR
+    def reference_dir(self) -> Path:
+        return RESULTS_DIR
 
     def recorded(self) -> dict[str, Any]:
         """What the report records as the settings (the sizes `--quick` applies included)."""

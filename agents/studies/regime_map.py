@@ -182,8 +182,8 @@ class Settings(SweepOptions):
             table_hours=0.4,
         )
 
-    def out_dir(self) -> Path:
-        return self.out or RESULTS_DIR / ("regime_map_quick" if self.quick else "regime_map")
+    def reference_dir(self) -> Path:
+        return RESULTS_DIR / ("regime_map_quick" if self.quick else "regime_map")
 
     def recorded(self) -> dict[str, Any]:
         s = self.sized()

@@ -4,7 +4,7 @@ Three conditions, each `--trials` trials (default 15, as in the paper) of `--con
 (default 15, the paper's convergence period) followed by a measured stable period of `--measured-h`
 hours (default 5): softmax TAVC (temperature 0.005), epsilon-greedy TAVC (epsilon 0.1) and random
 allocation. Trials run in parallel over all cores and each is saved the moment it finishes, under
-`<out>/trials/`; rerunning the same command resumes and never recomputes a finished trial.
+`<out>/trials/`; `--resume RUN_DIR` continues an interrupted run and never recomputes a finished trial.
 
 Outputs in `<out>/` (default `benchmarks/results/table1_<preset>_<init>/`): `table1.{md,csv,json}`
 (state-time distribution of all f:s states next to the paper's values, T of Equation 3, differences
@@ -21,6 +21,7 @@ on the high-value circuit (the paper's homogeneous result: 3 most frequent under
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 import math
@@ -41,6 +42,7 @@ from agents.studies.common import (
     Overrides,
     SweepOptions,
     arena_overrides,
+    compare_tables,
     run_trials,
 )
 from tavc_env import PRESETS, make_config, metrics
@@ -130,9 +132,9 @@ class Settings(SweepOptions):
             return self
         return dataclasses.replace(self, trials=2, convergence_h=0.3, measured_h=0.2)
 
-    def out_dir(self) -> Path:
+    def reference_dir(self) -> Path:
         suffix = "_quick" if self.quick else ""
-        return self.out or RESULTS_DIR / f"table1_{self.preset}_{self.init}{suffix}"
+        return RESULTS_DIR / f"table1_{self.preset}_{self.init}{suffix}"
 
     def recorded(self) -> dict[str, Any]:
         """What the report records as the settings (the sizes `--quick` applies included)."""
@@ -558,3 +560,36 @@ def plot_performance(
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)
+
+
+# -- agreement with the committed reference ----------------------------------------------------------
+def agreement(out: Path, reference: Path) -> list[str]:
+    """Whether this run's Table 1 agrees with the committed reference: bit-identical where the
+    seeds and the code match; otherwise, cell by cell (state x condition), whether the two means
+    lie within each other's noise (|difference| <= 1.96 standard errors of the difference)."""
+    lines = compare_tables(out, reference)
+    fresh, ref = out / "table1.csv", reference / "table1.csv"
+    if not any(line.startswith("table1.csv:") and " cells differ " in line for line in lines):
+        return lines
+    n = int(json.loads((out / "table1.json").read_text())["metadata"]["settings"]["trials"])
+    new, old = _rows(fresh), _rows(ref)
+    within = total = 0
+    for state in new.keys() & old.keys():
+        for condition in ("softmax", "epsilon", "random"):
+            mu, sd = f"mu_{condition}", f"sd_{condition}"
+            if mu not in new[state] or mu not in old[state]:
+                continue
+            se = math.hypot(float(new[state][sd]), float(old[state][sd])) / math.sqrt(n)
+            total += 1
+            within += abs(float(new[state][mu]) - float(old[state][mu])) <= 1.96 * se + 1e-12
+    return [
+        *lines,
+        f"Table 1: {within} of {total} cells (state x condition) agree with the reference within "
+        "1.96 standard errors of the difference (with 95 % intervals about 1 in 20 cells may "
+        "fall outside by chance)",
+    ]
+
+
+def _rows(path: Path) -> dict[str, dict[str, str]]:
+    with path.open(newline="", encoding="utf-8") as f:
+        return {row["state"]: row for row in csv.DictReader(f)}

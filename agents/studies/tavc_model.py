@@ -9,7 +9,7 @@ The check: the predicted optimum, its neighbours (one robot moved) and the next-
 run as static allocations in the full arena (`--check-seeds` runs each); the measured delivered
 value per robot per 10 s is set beside the model's prediction.
 
-Outputs in `benchmarks/results/tavc_model/<preset>/` (or `--out`): `model.json` (the model, read
+Outputs in `benchmarks/results/tavc_model/<preset>/` (the committed reference; a run writes into a new `runs/` folder unless `--update-reference` or `--out`): `model.json` (the model, read
 by the allocators and vacancy_chain studies), `slot_values.{md,csv,json}`, `group_runs.csv` (every
 run's rate), `check.{md,csv,json}`. Finished runs are kept in `cache/` (not committed), so an
 interrupted run resumes.
@@ -74,8 +74,8 @@ class Settings(SweepOptions):
             if not ok:
                 raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
 
-    def out_dir(self) -> Path:
-        return self.out if self.out is not None else model_dir(self.preset)
+    def reference_dir(self) -> Path:
+        return model_dir(self.preset)
 
     def recorded(self) -> dict[str, Any]:
         """What the reports record as the settings (as text, as they always have)."""

@@ -72,8 +72,8 @@ class Settings(SweepOptions):
     def hours_scale(self) -> float:
         return 0.05 if self.quick else 1.0
 
-    def out_dir(self) -> Path:
-        return self.out or RESULTS_DIR
+    def reference_dir(self) -> Path:
+        return RESULTS_DIR
 
     def recorded(self) -> dict[str, Any]:
         return {"sizes": list(self.sizes), "repeats": self.repeat_count, "quick": self.quick}

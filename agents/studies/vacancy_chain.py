@@ -21,7 +21,7 @@ identical, which is how the robot to break is chosen. Measured per allocator, ov
 * after the swap: the model value of the allocation (new values) against the new optimum, in each
   third of the last phase.
 
-Outputs in `benchmarks/results/vacancy_chain/` (or `--out`): `vacancy_chain.{md,csv,json}`,
+Outputs in `benchmarks/results/vacancy_chain/` (the committed reference; a run writes into a new `runs/` folder unless `--update-reference` or `--out`): `vacancy_chain.{md,csv,json}`,
 `trials.csv` (allocator, seed and broken robot rebuild each trial; an empty `recovery_min` means
 never back to full strength) and `timeline.png` (each robot's circuit around the events, one
 allocator per panel, one seed). Trials are kept under `cache/` (not committed), so an interrupted
@@ -103,9 +103,7 @@ class Settings(SweepOptions):
             return self
         return dataclasses.replace(self, trials=2, convergence_h=1.0, phase_h=1.0)
 
-    def out_dir(self) -> Path:
-        if self.out is not None:
-            return self.out
+    def reference_dir(self) -> Path:
         return RESULTS_DIR / ("vacancy_chain_quick" if self.quick else "vacancy_chain")
 
     def recorded(self) -> dict[str, Any]:

@@ -59,5 +59,5 @@ def test_the_bays_search_is_valid_and_keeps_the_first_search_s_names() -> None:
     assert design.CANDIDATES[-1].name == "gov2.56_load40"
     s = design.Settings(search="bays")
     assert s.candidates() == design.BAYS_CANDIDATES
-    assert s.out_dir().name == "congestion_design_bays"
-    assert design.Settings().out_dir().name == "congestion_design"
+    assert s.reference_dir().name == "congestion_design_bays"
+    assert design.Settings().reference_dir().name == "congestion_design"

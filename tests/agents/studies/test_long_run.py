@@ -85,7 +85,11 @@ def test_quick_run_passes_and_a_tight_limit_fails(tmp_path: Path) -> None:
     command += ["--out", str(tmp_path)]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.startswith("- **PASS**: longest gap")
+    said = done.stdout.splitlines()
+    assert said[0] == f"Writing to {tmp_path}/"
+    assert said[1].startswith("- **PASS**: longest gap")
+    # a quick run is not compared with the committed full-size report
+    assert "long_run.csv: not compared with the committed reference" in done.stdout
     summary = json.loads((tmp_path / "long_run.json").read_text())["summary"]
     seed = summary["per_seed"][0]
     assert seed["monitored_ticks"] == seed["ticks"] == 9000  # every tick of 0.25 h watched

@@ -221,8 +221,8 @@ def test_recorded_settings_are_those_of_the_committed_reports() -> None:
     path = RESULTS_DIR / "tavc_model" / "three_circuits_three_classes" / "slot_values.json"
     assert three.recorded() == committed_settings(path)
     recorded_now = {
-        "allocators": allocators.Settings().recorded(),
-        "vacancy_chain": vacancy_chain.Settings().recorded(),
+        "allocators": allocators.Settings(update_reference=True).recorded(),
+        "vacancy_chain": vacancy_chain.Settings(update_reference=True).recorded(),
     }
     for name, recorded in recorded_now.items():
         committed = committed_settings(RESULTS_DIR / name / f"{name}.json")
@@ -234,10 +234,10 @@ def test_recorded_settings_are_those_of_the_committed_reports() -> None:
 
 def test_quick_sizes_and_folders() -> None:
     quick = allocators.Settings(quick=True)
-    assert quick.out_dir() == RESULTS_DIR / "allocators_quick"
+    assert quick.reference_dir() == RESULTS_DIR / "allocators_quick"
     assert quick.recorded()["trials"] == "2" and quick.recorded()["measured_h"] == "1.0"
     vquick = vacancy_chain.Settings(quick=True)
-    assert vquick.out_dir() == RESULTS_DIR / "vacancy_chain_quick"
+    assert vquick.reference_dir() == RESULTS_DIR / "vacancy_chain_quick"
     assert vquick.times() == {"break": 3600.0, "repair": 7200.0, "swap": 10800.0, "end": 14400.0}
 
 
