@@ -148,7 +148,8 @@ class ArenaConfig:
     Stations (one source and one sink per circuit) serve one robot at a time: a robot must reach the
     dock, stand there for the service time (loading at a source, unloading at a sink), and leave.
     Robots that arrive while a station is busy wait in a physical line beside it, first come first
-    served. This is where most interference comes from (see DESIGN.md section 2 and the README).
+    served. This is where most interference comes from (see DESIGN.md section 2 and the docs page
+    `docs/results/interference.md`).
 
     With `service_scales_with_speed`, a robot's loading and unloading take the service time times
     `service_reference_speed / speed`: a faster robot is faster at the whole task, docking and
@@ -497,7 +498,7 @@ def _three_circuits_three_classes() -> ArenaConfig:
     )
 
 
-# Arena regimes of the differentiation study (README, "Reproducing the paper"): overrides of the
+# Arena regimes of the differentiation study (docs/tutorials/reproduce.md): overrides of the
 # `dahl2004` arena, each a physical hypothesis about who yields to whom at the stations.
 ARENA_REGIMES: Mapping[str, Mapping[str, Any]] = {
     # one-robot docks, 20 s loading and 4 s unloading whatever the robot (the default)

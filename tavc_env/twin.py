@@ -597,10 +597,11 @@ class TwinArenaEnv(TavcArenaEnv):
     Args:
         tables: the arena's `InterferenceTables` (or their `to_dict()`), for the team and
             circuits of the configuration.
-        The other arguments are `TavcArenaEnv`'s (`preset`, `config`, `max_cycles`,
-        `max_sim_time_s`, `decision_interval_s`, `reward_time_unit`, `step_cap_s`,
-        `jam_window_s` (accepted, unused: the twin never jams), config overrides), except that
-        `render_mode` must be None.
+        render_mode: must be None (the twin draws nothing).
+        **env_kwargs: `TavcArenaEnv`'s other arguments (`preset`, `config`, `max_cycles`,
+            `max_sim_time_s`, `decision_interval_s`, `reward_time_unit`, `step_cap_s`,
+            `jam_window_s` (accepted, unused: the twin never jams), `observation_mode`
+            (`paper` or `paper_id`), config overrides).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
