@@ -19,22 +19,37 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from agents import studies
-from agents.experiments.files import check_writable
-from agents.experiments.provenance import load_provenance
-from agents.experiments.registry import ALLOCATORS, TEAMS, make_allocator
-from agents.experiments.runner import TrialResult, run_trial
-from agents.studies.common import RESULTS_DIR, arena_overrides, parse_key_values, run_study
-from tavc_env import PRESETS, make_config, metrics
+
+# The package (physics, numba, the studies) is imported only once a command runs, so that
+# `tavc --help` answers at once (benchmarks/cli_startup.py measures it against `python -c pass`).
+if TYPE_CHECKING:
+    from agents.experiments.runner import TrialResult
 
 NEEDS_MODEL = ("static", "greedy", "auction")
+DESCRIPTION = (
+    "Multi-robot task allocation in the prioritized transportation arena of Dahl, Mataric & "
+    "Sukhatme (DARS 2004)."
+)
+EPILOG = (
+    "Examples: tavc trial --allocator softmax_tavc --hours 2 | "
+    "tavc record --minutes 5 --out arena.gif | tavc reproduce | tavc bench allocators --quick"
+)
+COMMANDS = {
+    "trial": "run one trial and print a summary",
+    "record": "record a trial to an animated GIF (or its last frame to a PNG)",
+    "plot": "plot saved results (no rerun): timeline, q, interference, table1",
+    "reproduce": "reproduce the paper's Table 1 (the table1 study)",
+    "bench": "run one of the package's studies (the benchmarks)",
+}
 
 
 def _allocator(args: argparse.Namespace) -> Any:
+    from agents.experiments.registry import make_allocator
+    from agents.studies.common import RESULTS_DIR, parse_key_values
+
     params = parse_key_values(args.param, "--param", "temperature=0.01")
     if args.allocator in NEEDS_MODEL and "model" not in params and "circuits" not in params:
         path = args.model or RESULTS_DIR / "tavc_model" / args.preset / "model.json"
@@ -55,6 +70,9 @@ def _allocator(args: argparse.Namespace) -> Any:
 
 
 def _trial_options(parser: argparse.ArgumentParser) -> None:
+    from agents.experiments.registry import ALLOCATORS
+    from tavc_env import PRESETS
+
     parser.add_argument("--preset", default="dahl2004", choices=sorted(PRESETS))
     parser.add_argument(
         "--allocator", default="softmax_tavc", choices=ALLOCATORS, help="default: softmax_tavc"
@@ -84,6 +102,10 @@ def _trial_options(parser: argparse.ArgumentParser) -> None:
 
 def cmd_trial(args: argparse.Namespace) -> int:
     from tqdm import tqdm
+
+    from agents.experiments.runner import run_trial
+    from agents.studies.common import arena_overrides
+    from tavc_env import make_config
 
     allocator = _allocator(args)  # bad parameters and arenas are refused before the run starts
     overrides = arena_overrides(args.set)
@@ -117,6 +139,10 @@ def cmd_trial(args: argparse.Namespace) -> int:
 
 def summary(result: TrialResult, allocator: str) -> str:
     """A trial's measured period as a small table."""
+    import numpy as np
+
+    from tavc_env import metrics
+
     t0, t1 = result.measured_window
     n = len(result.agents)
     perf = metrics.value_rate(
@@ -156,6 +182,9 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise ValueError(
             f"--out {args.out} is invalid; allowed: a .gif (animation) or .png (last frame) file"
         )
+    from agents.experiments.runner import run_trial
+    from agents.studies.common import arena_overrides
+
     frames: list[Any] = []
 
     def grab(env: Any) -> None:
@@ -193,6 +222,8 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 def cmd_plot(args: argparse.Namespace) -> int:
     from agents.analysis import plots
+    from agents.experiments.runner import TrialResult
+    from agents.studies.common import RESULTS_DIR
 
     if args.what == "interference":
         source = args.source or RESULTS_DIR / "interference.csv"
@@ -218,6 +249,7 @@ def _redraw_table1(folder: Path) -> int:
     """Table 1's reports and figures written again from the trials saved in `folder`, with the
     settings its provenance records (every trial is loaded, none rerun)."""
     import agents.studies.table1 as table1
+    from agents.experiments.provenance import load_provenance
 
     meta = load_provenance(folder)
     if meta is None:
@@ -239,23 +271,31 @@ def _existing(path: str | Path) -> Path:
 
 def _run_study(name: str, argv: Sequence[str]) -> int:
     """Run study `name` with command-line arguments `argv`, as `benchmarks/<name>.py` does."""
+    from agents.studies.common import run_study
+
     module = studies.load(name)
     return run_study(module, argv, module.__doc__ or name)
 
 
+def light_parser() -> argparse.ArgumentParser:
+    """The top level only (commands and their one-line help): what `tavc --help` shows, without
+    importing the package."""
+    top = argparse.ArgumentParser(prog="tavc", description=DESCRIPTION, epilog=EPILOG)
+    sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, text in COMMANDS.items():
+        sub.add_parser(name, help=text, add_help=False)
+    return top
+
+
 def parser() -> argparse.ArgumentParser:
-    top = argparse.ArgumentParser(
-        prog="tavc",
-        description="Multi-robot task allocation in the prioritized transportation arena of Dahl, "
-        "Mataric & Sukhatme (DARS 2004).",
-        epilog="Examples: tavc trial --allocator softmax_tavc --hours 2 | "
-        "tavc record --minutes 5 --out arena.gif | tavc reproduce | tavc bench allocators --quick",
-    )
+    from agents.experiments.registry import TEAMS
+
+    top = argparse.ArgumentParser(prog="tavc", description=DESCRIPTION, epilog=EPILOG)
     sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     trial = sub.add_parser(
         "trial",
-        help="run one trial and print a summary",
+        help=COMMANDS["trial"],
         description="Run one trial: a convergence period, then a measured period whose delivered "
         "value, switches and time shares are printed. Team allocators "
         f"({', '.join(sorted(TEAMS))}) coordinate the robots; the others are per robot.",
@@ -268,7 +308,7 @@ def parser() -> argparse.ArgumentParser:
 
     record = sub.add_parser(
         "record",
-        help="record a trial to an animated GIF (or its last frame to a PNG)",
+        help=COMMANDS["record"],
         description="Run a trial from the start and save one rendered frame every --frame-s "
         "simulated seconds as an animated GIF, or the last frame as a PNG (needs the render "
         "extra: pygame and Pillow).",
@@ -284,7 +324,7 @@ def parser() -> argparse.ArgumentParser:
 
     plot = sub.add_parser(
         "plot",
-        help="plot saved results (no rerun): timeline, q, interference",
+        help=COMMANDS["plot"],
         description="Draw a figure from saved results. timeline: which circuit each robot served "
         "over time, one panel per trial file (from `tavc trial --out` or a benchmark's saved "
         "trials); q: the learners' Q(high) - Q(other) over time, fast against slow; interference: "
@@ -306,7 +346,7 @@ def parser() -> argparse.ArgumentParser:
 
     reproduce = sub.add_parser(
         "reproduce",
-        help="reproduce the paper's Table 1 (the table1 study)",
+        help=COMMANDS["reproduce"],
         description="Run the table1 study with the arguments that follow (its options: "
         "tavc reproduce -- --help).",
     )
@@ -315,7 +355,7 @@ def parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser(
         "bench",
-        help="run one of the package's studies (the benchmarks)",
+        help=COMMANDS["bench"],
         description="Run study NAME with the arguments that follow (its options: "
         f"tavc bench NAME -- --help); NAME is one of: {', '.join(sorted(studies.STUDIES))}.",
     )
@@ -330,8 +370,17 @@ def _strip(args: Sequence[str]) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    given = list(sys.argv[1:] if argv is None else argv)
+    if not given or given[0] in ("-h", "--help") or given[0] not in COMMANDS:
+        light_parser().parse_args(given)  # help, or the error for a missing or unknown command
     top = parser()
-    args = top.parse_args(argv)
+    # `tavc reproduce --quick` and `tavc bench NAME --trials 3`: the study's own options follow
+    # the command (with or without a `--` first); the study's parser checks them
+    args, extra = top.parse_known_args(argv)
+    if extra and not hasattr(args, "script_args"):
+        top.error(f"unrecognized arguments: {' '.join(extra)}")
+    if hasattr(args, "script_args"):
+        args.script_args = [*extra, *args.script_args]
     if getattr(args, "name", None) is not None and args.name not in studies.STUDIES:
         top.error(f"study {args.name!r} is unknown; allowed: {sorted(studies.STUDIES)}")
     for name in ("hours", "minutes", "frame_s", "fps"):
@@ -350,6 +399,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         top.error(f"--convergence-h = {convergence}; allowed: a finite number >= 0")
     try:
         if getattr(args, "out", None) is not None:
+            from agents.experiments.files import check_writable
+
             check_writable(args.out)  # before any simulation, not after it
         code: int = args.run(args)
     except ValueError as error:

@@ -38,7 +38,7 @@ from tavc_env.twin import InterferenceTables, TaskTimeCell, TwinArenaEnv, twin_p
 
 register()
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = [
     "ENV_NAME",

@@ -26,6 +26,7 @@ STUDIES: dict[str, str] = {
         "liveness",
         "congestion_design",
         "regime_map",
+        "cli_startup",
     )
 }
 """Study name -> module."""
