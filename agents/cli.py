@@ -1,6 +1,6 @@
 """The `tavc` command: run a trial, record a video, reproduce the paper, run a benchmark.
 
-    tavc trial --allocator softmax_tavc --hours 2            # one trial, progress bar, summary
+    tavc trial --allocator softmax_tavc --measured-h 2            # one trial, progress bar, summary
     tavc trial --allocator greedy --preset three_circuits_three_classes
     tavc record --allocator random --minutes 5 --out arena.gif
     tavc reproduce                                          # the paper's Table 1 (study table1)
@@ -34,7 +34,7 @@ DESCRIPTION = (
     "Sukhatme (DARS 2004)."
 )
 EPILOG = (
-    "Examples: tavc trial --allocator softmax_tavc --hours 2 | "
+    "Examples: tavc trial --allocator softmax_tavc --measured-h 2 | "
     "tavc record --minutes 5 --out arena.gif | tavc reproduce | tavc bench allocators --quick"
 )
 COMMANDS = {
@@ -110,7 +110,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     allocator = _allocator(args)  # bad parameters and arenas are refused before the run starts
     overrides = arena_overrides(args.set)
     make_config(args.preset, **overrides)
-    total = args.convergence_h + args.hours
+    total = args.convergence_h + args.measured_h
     bar = tqdm(total=round(total * 3600), unit="sim s", dynamic_ncols=True, file=sys.stdout)
     done = [0]
 
@@ -123,7 +123,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
             allocator,
             seed=args.seed,
             convergence_s=args.convergence_h * 3600.0,
-            measured_s=args.hours * 3600.0,
+            measured_s=args.measured_h * 3600.0,
             progress=progress,
             preset=args.preset,
             **overrides,
@@ -301,8 +301,15 @@ def parser() -> argparse.ArgumentParser:
         f"({', '.join(sorted(TEAMS))}) coordinate the robots; the others are per robot.",
     )
     _trial_options(trial)
-    trial.add_argument("--convergence-h", type=float, default=15.0, help="default 15 (the paper's)")
-    trial.add_argument("--hours", type=float, default=5.0, help="measured hours (default 5)")
+    trial.add_argument(
+        "--convergence-h",
+        type=float,
+        default=15.0,
+        help="learning (convergence) period before it, hours (default 15, the paper's)",
+    )
+    trial.add_argument(
+        "--measured-h", type=float, default=5.0, help="measured period, hours (default 5)"
+    )
     trial.add_argument("--out", type=Path, default=None, help="save the full result as JSON")
     trial.set_defaults(run=cmd_trial)
 
@@ -383,7 +390,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.script_args = [*extra, *args.script_args]
     if getattr(args, "name", None) is not None and args.name not in studies.STUDIES:
         top.error(f"study {args.name!r} is unknown; allowed: {sorted(studies.STUDIES)}")
-    for name in ("hours", "minutes", "frame_s", "fps"):
+    for name in ("measured_h", "minutes", "frame_s", "fps"):
         value = getattr(args, name, None)
         if value is not None and not (math.isfinite(value) and value > 0):
             top.error(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")

@@ -18,7 +18,7 @@ from agents import studies
 from agents.cli import main
 from agents.experiments.runner import TrialResult
 
-TINY = ["--convergence-h", "0.02", "--hours", "0.05"]
+TINY = ["--convergence-h", "0.02", "--measured-h", "0.05"]
 
 
 def run(argv: list[str]) -> tuple[int, str, str]:
@@ -80,7 +80,7 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             ["trial", "--param", "temperature"],
             "--param 'temperature' is invalid; allowed: KEY=VALUE",
         ),
-        (["trial", "--hours", "0"], "--hours = 0.0; allowed: a finite number > 0"),
+        (["trial", "--measured-h", "0"], "--measured-h = 0.0; allowed: a finite number > 0"),
         (
             ["trial", "--convergence-h", "-1"],
             "--convergence-h = -1.0; allowed: a finite number >= 0",
@@ -91,7 +91,7 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             "allocator 'softmax_tavc' has no parameter bogus; allowed: temperature (default",
         ),
         (["trial", "--allocator", "auction", "--param", "bogus=1", *TINY], "no parameter bogus;"),
-        (["trial", "--hours", "inf"], "--hours = inf; allowed: a finite number > 0"),
+        (["trial", "--measured-h", "inf"], "--measured-h = inf; allowed: a finite number > 0"),
         (["trial", "--convergence-h", "nan"], "--convergence-h = nan; allowed: a finite number"),
         (["trial", *TINY, "--out", "/nonexistent/t.json"], "the folder /nonexistent does not"),
         (["trial", *TINY, "--out", "/dev/full"], "/dev/full is a character device"),
