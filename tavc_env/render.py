@@ -4,7 +4,8 @@ Robots are coloured by speed class (fast red, medium green, slow blue, others gr
 the colour of the circuit they serve; broken robots are hollow circles with a cross; each moving
 robot has a line to its current target; stations are squares (sources) and diamonds (sinks) in
 their circuit's colour. A readout shows the simulated time, the `f:s` state (robots of each class on
-the high-value circuit), the robots per circuit and the delivered value.
+the high-value circuit), the robots per circuit and the delivered value; a legend names the
+colours: each speed class with its speed, each circuit with its value.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ except ImportError as error:  # pragma: no cover - depends on the installation
 
 PIXELS_PER_M = 60
 MARGIN_PX = 10
-PANEL_PX = 60
+PANEL_PX = 106
 CLASS_COLOURS = {"fast": (220, 60, 50), "medium": (40, 160, 70), "slow": (50, 90, 220)}
 OTHER_COLOUR = (120, 120, 120)
 CIRCUIT_COLOURS = [(230, 160, 20), (150, 70, 190), (20, 160, 200), (140, 90, 40), (200, 80, 140)]
@@ -123,6 +124,7 @@ class Renderer:
         for k, text in enumerate(lines):
             label = self.font.render(text, True, (20, 20, 20))
             surf.blit(label, (MARGIN_PX, self.size[1] - PANEL_PX + 8 + 22 * k))
+        self._legend(labels, sim.values, self.size[1] - PANEL_PX + 8 + 44)
         if self.mode == "human":
             if self.window is None:
                 pygame.display.init()
@@ -132,6 +134,34 @@ class Renderer:
             pygame.display.flip()
             return None
         return np.transpose(pygame.surfarray.array3d(surf), (1, 0, 2)).copy()
+
+    def _legend(self, classes: list[str], values: np.ndarray, y: int) -> None:
+        """One line: a disc per speed class (with its speed), a square per circuit (with its value;
+        a robot's ring is the colour of the circuit it serves)."""
+        cfg = self.config
+        x = MARGIN_PX
+        items: list[tuple[str, tuple[int, int, int], str]] = []
+        for label in classes:
+            speed = max(r.speed for r in cfg.robots if r.speed_class == label)
+            items.append(
+                ("disc", CLASS_COLOURS.get(label, OTHER_COLOUR), f"{label} {speed:.2f} m/s")
+            )
+        high = int(np.argmax(values))
+        for c in range(cfg.n_circuits):
+            mark = " (high)" if c == high else ""
+            colour = CIRCUIT_COLOURS[c % len(CIRCUIT_COLOURS)]
+            items.append(("square", colour, f"circuit {c}: w {values[c]:g}{mark}"))
+        for shape, colour, text in items:
+            if shape == "disc":
+                pygame.draw.circle(self.surface, colour, (x + 6, y + 7), 6)
+            elif shape == "square":
+                pygame.draw.rect(self.surface, colour, (x, y + 1, 12, 12))
+            x += 16
+            written = self.font.render(text, True, (20, 20, 20))
+            self.surface.blit(written, (x, y))
+            x += written.get_width() + 14
+        key = "ring: the circuit a robot serves; square: source, diamond: sink; line: to its target"
+        self.surface.blit(self.font.render(key, True, (20, 20, 20)), (MARGIN_PX, y + 22))
 
     def close(self) -> None:
         if self.window is not None:
