@@ -556,7 +556,7 @@ def plot_performance(
     ax.bar(labels_, means, yerr=err, capsize=6, color=colours)
     ax.set_ylabel("delivered value per robot per 10 s")
     ax.set_title("Performance (95 % CI over trials)")
-    ax.set_ylim(bottom=min(means) * 0.9 if means else 0)
+    ax.set_ylim(bottom=0)  # zero-based: bar heights compare as ratios
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
     plt.close(fig)

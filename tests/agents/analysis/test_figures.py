@@ -1,0 +1,62 @@
+"""Figures stand alone: labelled axes, zero-based bar charts, legends where there is more than one
+series. Each figure function draws into a file while every saved figure is kept for inspection."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+pytest.importorskip("matplotlib")
+import matplotlib.figure
+
+from agents.studies import learning_runs, table1
+from agents.studies.learning_runs import CurveRow, Evaluation, LearningRun
+
+
+@pytest.fixture
+def saved(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
+    figures: list[Any] = []
+    original = matplotlib.figure.Figure.savefig
+
+    def keep(self: Any, *args: Any, **kwargs: Any) -> None:
+        figures.append(self)
+        original(self, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", keep)
+    return figures
+
+
+def check_axes(ax: Any) -> None:
+    assert (ax.get_ylabel() and ax.get_xlabel()) or ax.get_xticklabels(), "unlabelled axes"
+    if ax.containers:  # bars start at zero, so their heights compare as ratios
+        assert ax.get_ylim()[0] == 0.0
+    lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
+    if len(lines) > 1:
+        assert ax.get_legend() is not None, "several series without a legend"
+
+
+def test_table1_performance_bars_start_at_zero(saved: list[Any], tmp_path: Path) -> None:
+    by = {
+        c: [SimpleNamespace(performance=p + 0.001 * k) for k in range(3)]
+        for c, p in (("softmax", 0.112), ("epsilon", 0.109), ("random", 0.100))
+    }
+    names = {c: f"{c} (details)" for c in by}
+    table1.plot_performance(by, names, tmp_path / "performance.png")  # type: ignore[arg-type]
+    assert (tmp_path / "performance.png").stat().st_size > 0
+    for ax in saved[-1].axes:
+        check_axes(ax)
+
+
+def test_learning_curve_has_units_legends_and_zero_based_axes(
+    saved: list[Any], tmp_path: Path
+) -> None:
+    run = LearningRun("demo", "a demo run", {"preset": "dahl2004"}, {})
+    for step, perf in ((100, 0.10), (200, 0.11)):
+        run.curve.append(CurveRow(step, 1.0, Evaluation(0, 1.0, perf, 0.5, 0.4, 2.0)))
+    learning_runs.plot_curve(run, tmp_path / "curve.png")
+    for ax in saved[-1].axes:
+        check_axes(ax)
+        assert ax.get_ylim()[0] == 0.0
