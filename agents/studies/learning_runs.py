@@ -10,7 +10,7 @@ network (`network.npz`), which the allocator study then runs as the allocator `n
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,6 +32,62 @@ def training_arena(preset: str) -> dict[str, Any]:
     """The examples' training arena: `preset`, `paper_id` observations (a network shared by all
     robots tells them apart), 6-hour episodes."""
     return {"preset": preset, "observation_mode": "paper_id", "max_sim_time_s": 6 * 3600.0}
+
+
+EVAL_SEED = 10_000  # the checkpoints' evaluation trial (the same for every checkpoint)
+FINAL_SEEDS_FROM = 20_000  # the final evaluation's fresh seeds start here
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """What every example's training run shares; with the example's budget, its command line."""
+
+    preset: str = "dahl2004"
+    """the arena preset to train and evaluate on"""
+    seed: int = 0
+    """seed of the training (networks, environments)"""
+    eval_every: int = 10
+    """evaluate the greedy network after every this many updates (and after the last)"""
+    eval_hours: float = 2.0
+    """simulated hours of each greedy evaluation"""
+    final_seeds: int = 10
+    """fresh seeds of the final evaluation"""
+    out: Path | None = None
+    """write the learning curve, the final evaluation and the network here"""
+
+    def __post_init__(self) -> None:
+        for name, ok, allowed in (
+            ("eval_every", isinstance(self.eval_every, int) and self.eval_every >= 1, ">= 1"),
+            ("eval_hours", is_number(self.eval_hours) and self.eval_hours > 0, "> 0"),
+            ("final_seeds", isinstance(self.final_seeds, int) and self.final_seeds >= 2, ">= 2"),
+        ):
+            require(ok, name, getattr(self, name), allowed)
+        if self.out is not None and Path(self.out).exists() and not Path(self.out).is_dir():
+            raise ValueError(f"out = {str(self.out)!r} is invalid; allowed: a folder (new or not)")
+
+    def start(self, name: str, title: str, budget: Mapping[str, Any]) -> LearningRun:
+        """A learning run of the example `name` with these options and its `budget`."""
+        settings = {**budget, **{k: v for k, v in asdict(self).items() if k != "out"}}
+        return LearningRun(name, title, training_arena(self.preset), settings)
+
+    def update_done(
+        self, run: LearningRun, k: int, last: int, step: int, mlp: Callable[[], Mlp]
+    ) -> None:
+        """After update `k` of `last` (`step` env steps or decisions so far): evaluate the network
+        `mlp()` if one is due."""
+        if k % self.eval_every == 0 or k == last:
+            run.checkpoint(step, mlp(), self.eval_hours, EVAL_SEED)
+
+    def finish(self, run: LearningRun) -> LearningRun:
+        """The final evaluation on fresh seeds; the files written if `out` was given."""
+        run.finish(range(FINAL_SEEDS_FROM, FINAL_SEEDS_FROM + self.final_seeds), self.eval_hours)
+        if self.out is not None:
+            for path in write_learning_run(run, self.out):
+                print(f"wrote {path}")
+        return run
+
+
+DEFAULT_OPTIONS = RunOptions()
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ from decisions only (in the plain env five robots in six have nothing to decide 
 policy is shared by all robots; RLlib's own action-masking module reads the mask.
 
     pip install "tavc-env[marl]"
-    python docs/examples/rllib_ppo.py --iterations 2 --batch 200 --eval-hours 0.2 --out /tmp/rllib
+    python docs/examples/rllib_ppo.py --iterations 2 --batch 200 --eval-every 1 --eval-hours 0.2 --out /tmp/rllib
     python docs/examples/rllib_ppo.py --out docs/examples/results/rllib_ppo
 
 After every `--eval-every` iterations the policy network is exported
@@ -16,7 +16,6 @@ PNG), the final evaluation on fresh seeds and `network.npz`.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 import ray
@@ -30,10 +29,11 @@ from ray.tune.registry import register_env
 
 from agents.learners.network import Mlp
 from agents.studies.learning_runs import (
+    DEFAULT_OPTIONS,
     REWARD_SCALE,
     LearningRun,
+    RunOptions,
     training_arena,
-    write_learning_run,
 )
 from tavc_env.adapters.rllib import RllibArenaEnv
 
@@ -57,21 +57,15 @@ def network(module: Any) -> Mlp:
 
 
 def train(
-    iterations: int = 100,
-    batch: int = 2000,
-    eval_every: int = 10,
-    seed: int = 0,
-    eval_hours: float = 2.0,
-    final_seeds: int = 10,
-    preset: str = "dahl2004",
+    iterations: int = 100, batch: int = 2000, options: RunOptions = DEFAULT_OPTIONS
 ) -> LearningRun:
-    """`iterations` PPO updates on `batch` robot decisions each; evaluate every `eval_every`."""
+    """`iterations` PPO updates on `batch` robot decisions each."""
     torch.set_num_threads(1)
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
     register_env("tavc_deciders", make_env)
     config = (
         PPOConfig()
-        .environment("tavc_deciders", env_config={"preset": preset})
+        .environment("tavc_deciders", env_config={"preset": options.preset})
         .env_runners(num_env_runners=0, rollout_fragment_length="auto")
         .multi_agent(policies={"shared"}, policy_mapping_fn=lambda agent, *args, **kw: "shared")
         .rl_module(
@@ -91,49 +85,25 @@ def train(
             lr=3e-4,
             gamma=0.9,
         )
-        .debugging(seed=seed)
+        .debugging(seed=options.seed)
     )
     algo = config.build_algo()
-    settings = {
-        "preset": preset,
-        "iterations": iterations,
-        "batch": batch,
-        "seed": seed,
-        "eval_hours": eval_hours,
-    }
-    run = LearningRun(
+    run = options.start(
         "rllib_ppo",
         "RLlib PPO, deciders only, one policy for all robots",
-        training_arena(preset),
-        settings,
+        {"iterations": iterations, "batch": batch},
     )
     for k in range(1, iterations + 1):
         result = algo.train()
         sampled = result["env_runners"]["num_agent_steps_sampled_lifetime"]  # per robot
         decisions = int(sum(sampled.values())) if isinstance(sampled, dict) else int(sampled)
-        if k % eval_every == 0 or k == iterations:
-            run.checkpoint(decisions, network(algo.get_module("shared")), eval_hours, seed=10_000)
+        options.update_done(
+            run, k, iterations, decisions, lambda: network(algo.get_module("shared"))
+        )
     algo.stop()
     ray.shutdown()
-    run.finish(range(20_000, 20_000 + final_seeds), eval_hours)
-    return run
-
-
-def main(
-    iterations: int = 100,
-    batch: int = 2000,
-    eval_every: int = 10,
-    seed: int = 0,
-    eval_hours: float = 2.0,
-    final_seeds: int = 10,
-    preset: str = "dahl2004",
-    out: Path = Path("rllib_ppo"),
-) -> None:
-    """Train, evaluate, and write the learning curve, the evaluation and the network to `out`."""
-    run = train(iterations, batch, eval_every, seed, eval_hours, final_seeds, preset)
-    for path in write_learning_run(run, out):
-        print(f"wrote {path}")
+    return options.finish(run)
 
 
 if __name__ == "__main__":
-    tyro.cli(main)
+    tyro.cli(train, config=(tyro.conf.OmitArgPrefixes,))

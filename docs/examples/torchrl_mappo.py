@@ -6,7 +6,7 @@ The actor is one network shared by all robots (decentralised: each robot sees it
 observation); the critic is centralised (it sees every robot's observation), which is MAPPO.
 
     pip install "tavc-env[marl]"
-    python docs/examples/torchrl_mappo.py --frames 400 --batch 200 --eval-hours 0.2 --out /tmp/mappo
+    python docs/examples/torchrl_mappo.py --updates 2 --batch 200 --eval-every 1 --eval-hours 0.2 --out /tmp/mappo
     python docs/examples/torchrl_mappo.py --out docs/examples/results/torchrl_mappo
 
 After every `--eval-every` batches the actor is exported (`agents.learners.network.Mlp`) and run
@@ -16,7 +16,6 @@ seeds and `network.npz`.
 
 from __future__ import annotations
 
-from pathlib import Path
 from types import SimpleNamespace
 
 import torch
@@ -31,10 +30,11 @@ from torchrl.objectives import ClipPPOLoss, ValueEstimators
 import tavc_env
 from agents.learners.network import Mlp
 from agents.studies.learning_runs import (
+    DEFAULT_OPTIONS,
     REWARD_SCALE,
     LearningRun,
+    RunOptions,
     training_arena,
-    write_learning_run,
 )
 
 GROUP = "robot"  # TorchRL's default group of robot_0 .. robot_5
@@ -98,34 +98,20 @@ def network(actor_net: MultiAgentMLP) -> Mlp:
 
 
 def train(
-    frames: int = 100_000,
-    batch: int = 1000,
-    eval_every: int = 10,
-    seed: int = 0,
-    eval_hours: float = 2.0,
-    final_seeds: int = 10,
-    preset: str = "dahl2004",
+    updates: int = 100, batch: int = 1000, options: RunOptions = DEFAULT_OPTIONS
 ) -> LearningRun:
-    """Train for `frames` env steps, `batch` per PPO update; evaluate every `eval_every` batches."""
-    torch.manual_seed(seed)
+    """`updates` PPO updates, each on `batch` env steps (every robot's transition in each)."""
+    torch.manual_seed(options.seed)
     torch.set_num_threads(1)
-    env = make_env(seed, preset)
+    env = make_env(options.seed, options.preset)
     actor, loss, actor_net = make_mappo(env)
     optimiser = torch.optim.Adam(loss.parameters(), 3e-4)
-    settings = {
-        "preset": preset,
-        "frames": frames,
-        "batch": batch,
-        "seed": seed,
-        "eval_hours": eval_hours,
-    }
-    run = LearningRun(
+    run = options.start(
         "torchrl_mappo",
         "TorchRL MAPPO, shared actor, centralised critic",
-        training_arena(preset),
-        settings,
+        {"updates": updates, "batch": batch},
     )
-    collector = Collector(env, actor, frames_per_batch=batch, total_frames=frames)
+    collector = Collector(env, actor, frames_per_batch=batch, total_frames=updates * batch)
     for k, data in enumerate(collector, start=1):
         with torch.no_grad():
             loss.value_estimator(
@@ -141,28 +127,10 @@ def train(
             torch.nn.utils.clip_grad_norm_(loss.parameters(), 1.0)
             optimiser.step()
         collector.update_policy_weights_()
-        if k % eval_every == 0 or k * batch >= frames:
-            run.checkpoint(k * batch, network(actor_net), eval_hours, seed=10_000)
+        options.update_done(run, k, updates, k * batch, lambda: network(actor_net))
     collector.shutdown()
-    run.finish(range(20_000, 20_000 + final_seeds), eval_hours)
-    return run
-
-
-def main(
-    frames: int = 100_000,
-    batch: int = 1000,
-    eval_every: int = 10,
-    seed: int = 0,
-    eval_hours: float = 2.0,
-    final_seeds: int = 10,
-    preset: str = "dahl2004",
-    out: Path = Path("torchrl_mappo"),
-) -> None:
-    """Train, evaluate, and write the learning curve, the evaluation and the network to `out`."""
-    run = train(frames, batch, eval_every, seed, eval_hours, final_seeds, preset)
-    for path in write_learning_run(run, out):
-        print(f"wrote {path}")
+    return options.finish(run)
 
 
 if __name__ == "__main__":
-    tyro.cli(main)
+    tyro.cli(train, config=(tyro.conf.OmitArgPrefixes,))

@@ -4,10 +4,8 @@ steps; the package's adapters; and the shipped examples at a small size (marker 
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -15,17 +13,11 @@ import pytest
 
 import tavc_env
 from agents.learners.network import Mlp
+from agents.studies.learning_runs import RunOptions, write_learning_run
+from tests.docs.test_examples import load as example
 
 pytestmark = pytest.mark.marl
-EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
-
-
-def example(name: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+SMALL = RunOptions(eval_every=1, eval_hours=0.2, final_seeds=2)  # two checkpoints, two seeds
 
 
 def paper_id_inputs(n_robots: int = 6, n_circuits: int = 2) -> np.ndarray:
@@ -67,7 +59,7 @@ def test_torchrl_wrapper_takes_the_env_as_it_is_and_mappo_learns(tmp_path: Path)
     assert data["next", "robot", "info", "phase"].dtype == torch.float32  # the infos, as tensors
 
     mappo = example("torchrl_mappo")
-    run = mappo.train(frames=400, batch=200, eval_every=1, eval_hours=0.2, final_seeds=2)
+    run = mappo.train(updates=2, batch=200, options=SMALL)
     check_run(run, 2)
     # the export gives the actor's distribution (checked on a fresh actor)
     actor_env = mappo.make_env(0)
@@ -76,7 +68,7 @@ def test_torchrl_wrapper_takes_the_env_as_it_is_and_mappo_learns(tmp_path: Path)
     with torch.no_grad():
         logits = actor_net(torch.as_tensor(x).reshape(2, 6, 8)).reshape(12, 2).numpy()
     assert_same_policy(mappo.network(actor_net), logits, x)
-    files = mappo.write_learning_run(run, tmp_path)
+    files = write_learning_run(run, tmp_path)
     assert {p.name for p in files} >= {"curve.csv", "curve.png", "evaluation.md", "network.npz"}
     saved = Mlp.load(tmp_path / "network.npz")
     assert all(map(np.array_equal, saved.weights, run.mlp.weights))
@@ -132,7 +124,7 @@ def test_rllib_deciders_only_adapter_and_example(ray_session: Any) -> None:
             break
         assert 0 < len(obs) < 6 or steps == 1
     ppo = example("rllib_ppo")
-    run = ppo.train(iterations=2, batch=200, eval_every=1, eval_hours=0.2, final_seeds=2)
+    run = ppo.train(iterations=2, batch=200, options=SMALL)
     check_run(run, 2)
     # the export gives the policy module's distribution (checked on a fresh module)
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec
@@ -191,7 +183,7 @@ def test_sb3_shared_policy_vec_env_masks_and_the_maskable_ppo_example(tmp_path: 
         SharedPolicyVecEnv(observation_format="dict")
 
     sb3 = example("sb3_maskable_ppo")
-    run = sb3.train(steps=512, chunks=2, eval_hours=0.2, final_seeds=2)
+    run = sb3.train(updates=2, options=SMALL)
     check_run(run, 2)
     x = paper_id_inputs()
     model = sb3.MaskablePPO("MlpPolicy", SharedPolicyVecEnv(observation_mode="paper_id"), seed=0)
