@@ -269,12 +269,12 @@ def _existing(path: str | Path) -> Path:
     return Path(path)
 
 
-def _run_study(name: str, argv: Sequence[str]) -> int:
+def _run_study(name: str, argv: Sequence[str], prog: str) -> int:
     """Run study `name` with command-line arguments `argv`, as `benchmarks/<name>.py` does."""
     from agents.studies.common import run_study
 
     module = studies.load(name)
-    return run_study(module, argv, module.__doc__ or name)
+    return run_study(module, argv, module.__doc__ or name, prog)
 
 
 def light_parser() -> argparse.ArgumentParser:
@@ -358,7 +358,9 @@ def parser() -> argparse.ArgumentParser:
         "tavc reproduce -- --help).",
     )
     reproduce.add_argument("script_args", nargs=argparse.REMAINDER)
-    reproduce.set_defaults(run=lambda a: _run_study("table1", _strip(a.script_args)))
+    reproduce.set_defaults(
+        run=lambda a: _run_study("table1", _strip(a.script_args), "tavc reproduce")
+    )
 
     bench = sub.add_parser(
         "bench",
@@ -368,7 +370,9 @@ def parser() -> argparse.ArgumentParser:
     )
     bench.add_argument("name", help="the study's name, e.g. allocators")
     bench.add_argument("script_args", nargs=argparse.REMAINDER)
-    bench.set_defaults(run=lambda a: _run_study(a.name, _strip(a.script_args)))
+    bench.set_defaults(
+        run=lambda a: _run_study(a.name, _strip(a.script_args), f"tavc bench {a.name}")
+    )
     return top
 
 

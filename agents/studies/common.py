@@ -145,11 +145,16 @@ class Outcome:
 S = TypeVar("S")
 
 
-def parse_settings(settings_type: type[S], argv: Sequence[str] | None, description: str) -> S:
+def parse_settings(
+    settings_type: type[S],
+    argv: Sequence[str] | None,
+    description: str,
+    prog: str | None = None,
+) -> S:
     """The settings of a study from a command line (`argv`, default: sys.argv[1:]): one option
     per field, its help from the field's docstring; `--set` (an `Overrides` field) repeats. A
     setting its `__post_init__` refuses is a usage error that names it."""
-    return tyro.cli(settings_type, args=argv, description=description)
+    return tyro.cli(settings_type, args=argv, description=description, prog=prog)
 
 
 def replace(settings: S, **changes: Any) -> S:
@@ -179,11 +184,13 @@ def run_trials(
 
 
 # -- the command line of every study ----------------------------------------------------------------
-def run_study(module: ModuleType, argv: Sequence[str] | None, description: str) -> int:
+def run_study(
+    module: ModuleType, argv: Sequence[str] | None, description: str, prog: str | None = None
+) -> int:
     """Parse a study's settings from `argv`, say where it writes, run it, print its results table,
     where it wrote, and whether its tables agree with the committed reference. The exit code is
     1 if the study says it failed (`outcome.failed`, e.g. a long run that found a gap)."""
-    settings = parse_settings(module.Settings, argv, description)
+    settings = parse_settings(module.Settings, argv, description, prog)
     out = settings.out_dir()
     print(f"Writing to {out}/", flush=True)
     outcome = module.run(settings)
