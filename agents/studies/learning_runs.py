@@ -15,13 +15,16 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from agents.analysis.measures import measure
-from agents.analysis.reports import Report, fmt_ci, write_csv
+from agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from agents.analysis.stats import mean_ci
 from agents.experiments.files import atomic_path
 from agents.experiments.provenance import run_metadata
 from agents.experiments.runner import run_trial
 from agents.learners.network import Mlp, NetworkTeam
+from tavc_env import make_config
 from tavc_env._validation import is_number, require
 
 # Rewards are w / t with t in ms (about 0.03): the examples scale them so that networks see O(1).
@@ -202,8 +205,48 @@ def report_body(run: LearningRun) -> str:
     lines += [
         "",
         f"Learning curve: {len(run.curve)} checkpoints, greedy evaluation after each (`curve.csv`, `curve.png`).",
+        "",
+        "What the network learned: each robot's greedy choice after serving each circuit "
+        "(the network's whole policy, since it sees only its last circuit and its index).",
+        "",
+        what_it_learned(run),
     ]
     return "\n".join(lines)
+
+
+def what_it_learned(run: LearningRun) -> str:
+    """The final network's greedy circuit for every robot and last circuit, with the robots'
+    speed classes, and whether that is staying, a fixed circuit, or differentiation by class."""
+    require(run.mlp is not None, "learning run", run.name, "a run with a network")
+    assert run.mlp is not None
+    config = make_config(str(run.env_kwargs["preset"]))
+    n, m = config.n_robots, config.n_circuits
+    choice = [
+        [
+            int(np.argmax(run.mlp.scores(np.concatenate([np.eye(m)[c], np.eye(n)[i]]))))
+            for c in range(m)
+        ]
+        for i in range(n)
+    ]
+    rows = [
+        [f"robot_{i}", config.robots[i].speed_class, *(str(a) for a in choice[i])] for i in range(n)
+    ]
+    table = markdown_table(["robot", "class", *(f"after circuit {c}" for c in range(m))], rows)
+    stays = all(choice[i][c] == c for i in range(n) for c in range(m))
+    if stays:
+        reading = (
+            "Every robot stays on the circuit it served: the allocation the start gave is kept."
+        )
+    else:
+        by_class: dict[str, set[int]] = {}
+        for i in range(n):
+            by_class.setdefault(config.robots[i].speed_class, set()).update(choice[i])
+        reading = (
+            "Circuits chosen by class: "
+            + "; ".join(f"{cls}: {sorted(cs)}" for cls, cs in by_class.items())
+            + "."
+        )
+    return f"{table}\n\n{reading}"
 
 
 def plot_curve(run: LearningRun, path: Path) -> None:
