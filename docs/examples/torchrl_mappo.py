@@ -77,7 +77,13 @@ def make_mappo(env: TransformedEnv) -> tuple[ProbabilisticActor, ClipPPOLoss, Mu
     critic = TensorDictModule(
         mlp(1, centralised=True), in_keys=[OBS], out_keys=[(GROUP, "state_value")]
     )
-    loss = ClipPPOLoss(actor, critic, entropy_coeff=0.01, normalize_advantage=True)
+    loss = ClipPPOLoss(
+        actor,
+        critic,
+        entropy_coeff=0.01,
+        normalize_advantage=True,
+        normalize_advantage_exclude_dims=(-2,),  # per robot, not across the group
+    )
     loss.set_keys(
         reward=(GROUP, "reward"),
         action=env.action_key,
