@@ -6,7 +6,7 @@ A research tool, for fast what-if studies and power analyses; never a replacemen
 
 ## tavc_twin_v0
 
-The same PettingZoo `ParallelEnv` as `tavc_arena_v0` (`TavcArenaEnv`, which `TwinArenaEnv`
+The same PettingZoo `ParallelEnv` as `tavc_arena_v1` (`TavcArenaEnv`, which `TwinArenaEnv`
 subclasses: same agents, observation and action spaces, rewards `w_i / t` in the same time unit,
 info keys, truncation, `max_cycles`, stepping modes, breakdowns and repairs, priority changes,
 copying), with the physics engine replaced by `TaskTimeProcess`, an event-driven model:
