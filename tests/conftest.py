@@ -11,9 +11,29 @@ os.environ["SDL_VIDEODRIVER"] = "dummy"
 os.environ["SDL_AUDIODRIVER"] = "dummy"
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
+from typing import Any
+
 import pytest
 
-from tests.helpers import CrowdTrace, record_crowd_run
+from tests.helpers import CrowdTrace, figure_problems, record_crowd_run
+
+
+@pytest.fixture(autouse=True)
+def figures_stand_alone(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every figure any test saves is checked as it is saved: labelled axes, bar charts that start
+    at zero, a legend where several series are drawn (`tests.helpers.figure_problems`)."""
+    try:
+        import matplotlib.figure
+    except ImportError:
+        return
+    original = matplotlib.figure.Figure.savefig
+
+    def checked(self: Any, *args: Any, **kwargs: Any) -> None:
+        problems = figure_problems(self)
+        assert not problems, f"figure saved to {args[0] if args else '?'}: {problems}"
+        original(self, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", checked)
 
 
 @pytest.fixture(scope="session")

@@ -313,3 +313,40 @@ def record_crowd_run(seed: int = 0) -> CrowdTrace:
         completed=tasks.completed.copy(),
         rewards=total,
     )
+
+
+def figure_problems(figure: Any) -> list[str]:
+    """What keeps a matplotlib figure from standing alone: axes without labels, bar charts whose
+    value axis does not start at zero (so heights do not compare as ratios), several labelled
+    series without a legend."""
+    problems = []
+    for k, ax in enumerate(figure.axes):
+        if not ax.get_visible() or not ax.has_data():
+            continue
+        name = ax.get_title() or f"axes {k}"
+        colorbar = getattr(ax, "_colorbar", None)
+        if colorbar is not None:  # a colour scale says what its colours measure
+            if not (ax.get_ylabel() or ax.get_xlabel()):
+                problems.append(f"{name}: a colour bar without a label")
+            continue
+        if not ax.get_ylabel() and not ax.get_yticklabels():
+            problems.append(f"{name}: no y label")
+        shared = ax.get_shared_x_axes().get_siblings(ax)  # (panels stacked on one time axis)
+        if not any(
+            a.get_xlabel() or any(t.get_text() for t in a.get_xticklabels()) for a in shared
+        ):
+            problems.append(f"{name}: no x label")
+        bars = [c for c in ax.containers if type(c).__name__ == "BarContainer"]
+        if bars:
+            horizontal = getattr(bars[0], "orientation", "vertical") == "horizontal"
+            low = (ax.get_xlim() if horizontal else ax.get_ylim())[0]
+            if low > 0:
+                problems.append(f"{name}: bars start at {low:g}, not at zero")
+        labelled = [
+            a
+            for a in [*ax.get_lines(), *ax.collections, *ax.containers]
+            if not str(a.get_label()).startswith("_")
+        ]
+        if len(labelled) > 1 and ax.get_legend() is None and figure.legends == []:
+            problems.append(f"{name}: {len(labelled)} labelled series and no legend")
+    return problems

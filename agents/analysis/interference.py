@@ -389,7 +389,7 @@ def _matrix_panel(
     ax.set_xlabel("slow robots on circuit 0, s")
     ax.set_ylabel("fast robots on circuit 0, f")
     ax.set_title(f"{cls.capitalize()} robot's task time on circuit 0 (s), {preset}")
-    fig.colorbar(im, ax=ax, shrink=0.8)
+    fig.colorbar(im, ax=ax, shrink=0.8, label="mean task time (s)")
 
 
 def plot_interference(
