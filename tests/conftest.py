@@ -11,6 +11,7 @@ os.environ["SDL_VIDEODRIVER"] = "dummy"
 os.environ["SDL_AUDIODRIVER"] = "dummy"
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -18,13 +19,15 @@ import pytest
 from tests.helpers import CrowdTrace, figure_problems, record_crowd_run
 
 
-@pytest.fixture(autouse=True)
-def figures_stand_alone(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every figure any test saves is checked as it is saved: labelled axes, bar charts that start
-    at zero, a legend where several series are drawn (`tests.helpers.figure_problems`)."""
+@pytest.fixture(autouse=True, scope="session")
+def figures_stand_alone() -> Iterator[None]:
+    """Every figure saved in the test process (fixtures of any scope included) is checked as it is
+    saved: labelled axes, bar charts that start at zero, a legend where several series are drawn
+    (`tests.helpers.figure_problems`)."""
     try:
         import matplotlib.figure
     except ImportError:
+        yield
         return
     original = matplotlib.figure.Figure.savefig
 
@@ -33,7 +36,9 @@ def figures_stand_alone(monkeypatch: pytest.MonkeyPatch) -> None:
         assert not problems, f"figure saved to {args[0] if args else '?'}: {problems}"
         original(self, *args, **kwargs)
 
-    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", checked)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(matplotlib.figure.Figure, "savefig", checked)
+        yield
 
 
 @pytest.fixture(scope="session")

@@ -367,7 +367,7 @@ def plot(summary: Sequence[Mapping[str, Any]], path: Path) -> None:
         ax.set_xticks(x, [r["label"] for r in rows], rotation=35, ha="right")
         ax.axhline(1.0, color="grey", lw=0.8, ls="--")
         ax.set_title(preset)
-        ax.set_ylim(0.6, 1.05)
+        ax.set_ylim(0.0, 1.05)
     np.atleast_1d(axes)[0].set_ylabel("value per robot per 10 s / model optimum")
     np.atleast_1d(axes)[0].legend(loc="lower left", fontsize=8)
     fig.tight_layout()
