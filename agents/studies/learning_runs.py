@@ -77,7 +77,7 @@ class RunOptions:
         self, run: LearningRun, k: int, last: int, step: int, mlp: Callable[[], Mlp]
     ) -> None:
         """After update `k` of `last` (`step` env steps or decisions so far): evaluate the network
-        `mlp()` if one is due."""
+        `mlp()` if one is due (`k = 0`: before training, always)."""
         if k % self.eval_every == 0 or k == last:
             run.checkpoint(step, mlp(), self.eval_hours, EVAL_SEED)
 

@@ -93,6 +93,7 @@ def train(
         "RLlib PPO, deciders only, one policy for all robots",
         {"iterations": iterations, "batch": batch},
     )
+    options.update_done(run, 0, iterations, 0, lambda: network(algo.get_module("shared")))
     for k in range(1, iterations + 1):
         result = algo.train()
         sampled = result["env_runners"]["num_agent_steps_sampled_lifetime"]  # per robot

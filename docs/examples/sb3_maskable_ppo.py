@@ -50,6 +50,7 @@ def train(updates: int = 100, options: RunOptions = DEFAULT_OPTIONS) -> Learning
         "SB3 MaskablePPO, one network for all robots",
         {"updates": updates, "n_steps": 128, "n_envs": 2},
     )
+    options.update_done(run, 0, updates, 0, lambda: network(model))  # the untrained network
     for k in range(1, updates + 1):
         model.learn(total_timesteps=128 * venv.num_envs, reset_num_timesteps=False)
         options.update_done(run, k, updates, k * 128, lambda: network(model))

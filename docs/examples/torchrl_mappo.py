@@ -117,6 +117,7 @@ def train(
         "TorchRL MAPPO, shared actor, centralised critic",
         {"updates": updates, "batch": batch},
     )
+    options.update_done(run, 0, updates, 0, lambda: network(actor_net))  # the untrained network
     collector = Collector(env, actor, frames_per_batch=batch, total_frames=updates * batch)
     for k, data in enumerate(collector, start=1):
         with torch.no_grad():

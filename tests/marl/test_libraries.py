@@ -40,7 +40,7 @@ def assert_same_policy(mlp: Mlp, library_logits: np.ndarray, x: np.ndarray) -> N
 
 
 def check_run(run: Any, checkpoints: int) -> None:
-    assert len(run.curve) == checkpoints and run.final
+    assert len(run.curve) == checkpoints + 1 and run.final  # (+ the untrained network)
     for row in run.curve:
         assert 0.0 < row.evaluation.performance < 1.0
         assert 0.0 <= row.evaluation.fast_share <= 1.0
