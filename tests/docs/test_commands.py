@@ -6,11 +6,15 @@
 - Study commands (`python benchmarks/<name>.py ...`, `tavc bench <name> ...`, `tavc reproduce ...`)
   take minutes to hours: their options are parsed and validated by the study's own settings,
   exactly as the command would, without running it.
+- Example scripts (`python docs/examples/<name>.py ...`) train deep networks: their options are
+  checked against the example's own (its `train` parameters and `RunOptions`).
 - Installs, the test suite and `mkdocs serve` are what CI itself runs; they are not repeated.
 """
 
 from __future__ import annotations
 
+import ast
+import dataclasses
 import shlex
 import subprocess
 import sys
@@ -20,6 +24,7 @@ import pytest
 
 from agents import studies
 from agents.studies.common import parse_settings
+from agents.studies.learning_runs import RunOptions
 from tests.docs.markdown import ROOT, Block, documentation_files, fenced_blocks
 
 SKIPPED = ("pip", "mkdocs")  # (and `python -m pytest`)
@@ -39,6 +44,17 @@ def commands(block: Block) -> list[list[str]]:
 BASH = [b for p in documentation_files() for b in fenced_blocks(p)[0] if b.language == "bash"]
 
 
+def example_options(script: Path) -> set[str]:
+    """The options of an example of docs/examples (its `train` parameters and `RunOptions`'
+    fields, as flags), read from its source: the deep-learning libraries it imports need not be
+    installed."""
+    tree = ast.parse(script.read_text(encoding="utf-8"))
+    train = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "train")
+    names = {a.arg for a in train.args.args} - {"options"}
+    names |= {f.name for f in dataclasses.fields(RunOptions)}
+    return {"--" + n.replace("_", "-") for n in names}
+
+
 def study_of(words: list[str]) -> tuple[str, list[str]] | None:
     """(study name, its arguments) if `words` runs a study, else None."""
     if words[:1] == ["python"] and len(words) > 1 and words[1].startswith("benchmarks/"):
@@ -54,6 +70,13 @@ def study_of(words: list[str]) -> tuple[str, list[str]] | None:
 def test_documented_commands_work_as_written(block: Block, tmp_path: Path) -> None:
     for words in commands(block):
         if words[0] in SKIPPED or words[:3] == ["python", "-m", "pytest"]:
+            continue
+        if words[:1] == ["python"] and words[1].startswith("docs/examples/"):
+            script = ROOT / words[1]
+            assert script.is_file(), f"{block.where}: {script} does not exist"
+            flags = {w for w in words[2:] if w.startswith("--")}
+            unknown = flags - example_options(script)
+            assert not unknown, f"{block.where}: {script.name} has no options {sorted(unknown)}"
             continue
         study = study_of(words)
         if study is not None:
