@@ -42,6 +42,20 @@ class Policy(Protocol):
         now observes `next_observation` (`info` carries e.g. `task_time_s`)."""
 
 
+class NonLearning:
+    """Base for allocators that do not learn: `update` does nothing."""
+
+    def update(
+        self,
+        observation: np.ndarray,
+        action: int,
+        reward: float,
+        next_observation: np.ndarray,
+        info: dict[str, Any],
+    ) -> None:
+        return None
+
+
 def generator(rng: np.random.Generator | None, owner: object) -> np.random.Generator:
     """`rng`, the random stream `owner` was given by `reset`; a ValueError if it was never reset
     (a policy used before `reset` must not silently run on some default seed)."""

@@ -2,25 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from agents.policy import allowed_actions, generator, state_of
-
-
-class NonLearning:
-    """Base for allocators that do not learn: `update` does nothing."""
-
-    def update(
-        self,
-        observation: np.ndarray,
-        action: int,
-        reward: float,
-        next_observation: np.ndarray,
-        info: dict[str, Any],
-    ) -> None:
-        return None
+from agents.policy import NonLearning, allowed_actions, generator, state_of
 
 
 class RandomAllocator(NonLearning):

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.policy import Policy, allowed_actions
+from agents.policy import NonLearning, Policy, allowed_actions
 from tavc_env._validation import require
 from tavc_env.config import ArenaConfig
 
@@ -114,7 +114,7 @@ class Mlp:
             )
 
 
-class NetworkPolicy:
+class NetworkPolicy(NonLearning):
     """One robot driven by a frozen network: the allowed action with the highest score. The input
     is the observation followed by the one-hot of `robot` among `n_robots` (`paper_id`)."""
 
@@ -134,16 +134,6 @@ class NetworkPolicy:
         allowed = allowed_actions(action_mask)
         scores = self.mlp.scores(np.concatenate([observation, self.robot_id]))
         return int(allowed[np.argmax(scores[allowed])])
-
-    def update(
-        self,
-        observation: np.ndarray,
-        action: int,
-        reward: float,
-        next_observation: np.ndarray,
-        info: dict[str, Any],
-    ) -> None:
-        return None  # frozen: it learned in the library that trained it
 
 
 class NetworkTeam:
