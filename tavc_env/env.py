@@ -65,12 +65,17 @@ from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, make_config
 from tavc_env.engine.simulation import JAM_WINDOW_S, Advance, ArenaSnapshot, Simulation
 from tavc_env.engine.tasks import PHASE_NAMES, Phase
-from tavc_env.observations import ObservationBuilder, check_observation_args, frozen
+from tavc_env.observations import (
+    N_PHASES,
+    ObservationBuilder,
+    check_observation_args,
+    frozen,
+    pose_features,
+)
 
 ENV_NAME = "tavc_arena_v1"
 RENDER_MODES = ("human", "rgb_array")
 TIME_UNITS = {"ms": 1000.0, "s": 1.0}
-N_PHASES = len(Phase)
 # The names of the `phase` codes in infos: PHASES[info["phase"]]
 PHASES = tuple(PHASE_NAMES[p] for p in Phase)
 
@@ -298,14 +303,8 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         cfg = self.config
         sim = self.sim
         n, m = cfg.n_robots, cfg.n_circuits
-        pos = sim.positions()
-        vel = sim.world.velocities() / sim.speeds[:, None]
         robots = np.zeros((n, 6 + m + N_PHASES), np.float32)
-        robots[:, 0] = np.clip(pos[:, 0] / cfg.width, 0.0, 1.0)
-        robots[:, 1] = np.clip(pos[:, 1] / cfg.height, 0.0, 1.0)
-        robots[:, 2] = np.cos(sim.heading)
-        robots[:, 3] = np.sin(sim.heading)
-        robots[:, 4:6] = np.clip(vel, -1.0, 1.0)
+        robots[:, :6] = pose_features(sim, cfg, sim.speeds[:, None])
         robots[np.arange(n), 6 + sim.tasks.circuit] = 1.0
         robots[np.arange(n), 6 + m + sim.tasks.phase] = 1.0
         stations = np.array([[st.busy, len(st.line) / n] for st in sim.tasks.stations], np.float32)

@@ -109,12 +109,7 @@ class ObservationBuilder:
         out[rows, tasks.circuit] = 1.0
         out[rows, m + rows] = 1.0
         k = m + n
-        pos = sim.positions()
-        out[:, k] = np.clip(pos[:, 0] / cfg.width, 0.0, 1.0)
-        out[:, k + 1] = np.clip(pos[:, 1] / cfg.height, 0.0, 1.0)
-        out[:, k + 2] = np.cos(sim.heading)
-        out[:, k + 3] = np.sin(sim.heading)
-        out[:, k + 4 : k + 6] = np.clip(sim.world.velocities() / self._v_ref, -1.0, 1.0)
+        out[:, k : k + 6] = pose_features(sim, cfg, self._v_ref)
         k += 6
         out[rows, k + tasks.phase] = 1.0
         k += N_PHASES
@@ -130,6 +125,20 @@ class ObservationBuilder:
         values = np.asarray(tasks.values, dtype=float)
         out[:, k : k + m] = values / values.max()
         return out
+
+
+def pose_features(sim: Any, config: ArenaConfig, speed: float | np.ndarray) -> np.ndarray:
+    """Per robot `[x/W, y/H, cos h, sin h, vx/speed, vy/speed]`: positions clipped to [0, 1],
+    velocity components to [-1, 1] (contacts can briefly push a robot faster). `speed`: one
+    reference speed, or a column of each robot's own."""
+    pos = sim.positions()
+    out = np.empty((len(pos), 6), np.float32)
+    out[:, 0] = np.clip(pos[:, 0] / config.width, 0.0, 1.0)
+    out[:, 1] = np.clip(pos[:, 1] / config.height, 0.0, 1.0)
+    out[:, 2] = np.cos(sim.heading)
+    out[:, 3] = np.sin(sim.heading)
+    out[:, 4:6] = np.clip(sim.world.velocities() / speed, -1.0, 1.0)
+    return out
 
 
 def frozen(array: np.ndarray) -> np.ndarray:

@@ -68,7 +68,8 @@ from tavc_env.engine.simulation import (
     breakdown_schedule,
 )
 from tavc_env.engine.tasks import Completion, Phase
-from tavc_env.env import _HISTORIES, N_PHASES, TavcArenaEnv
+from tavc_env.env import _HISTORIES, TavcArenaEnv
+from tavc_env.observations import N_PHASES
 
 TWIN_ENV_NAME = "tavc_twin_v0"
 CellKey = tuple[int, tuple[int, ...], str]
