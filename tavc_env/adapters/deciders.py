@@ -62,11 +62,9 @@ class DecidersOnly:
     ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
         obs, infos = self.env.reset(seed=seed, options=options)
         self._earned = dict.fromkeys(self.possible_agents, 0.0)
-        while True:
-            deciders = [a for a in self.env.agents if infos[a]["action_required"]]
-            if deciders or not self.env.agents:
-                break
-            obs, _, _, _, infos = self.env.step({})  # (a start with nobody deciding: none ships)
+        deciders = [a for a in self.env.agents if infos[a]["action_required"]]
+        if not deciders:  # (a start with nobody deciding: no shipped arena has one)
+            obs, _, _, infos, deciders = self._until_someone_decides({})
         self.agents = deciders
         return {a: obs[a] for a in deciders}, {a: infos[a] for a in deciders}
 
@@ -80,16 +78,8 @@ class DecidersOnly:
                 f"actions for {extra} are invalid: those robots need not decide now; "
                 f"allowed: actions for the robots that must decide, {self.agents}"
             )
-        step_actions = actions
-        while True:
-            obs, rewards, terms, truncs, infos = self.env.step(step_actions)
-            step_actions = {}
-            for a, r in rewards.items():
-                self._earned[a] += r
-            ended = any(terms.values()) or any(truncs.values())
-            deciders = [a for a in infos if infos[a]["action_required"]]
-            if ended or deciders:
-                break
+        obs, terms, truncs, infos, deciders = self._until_someone_decides(actions)
+        ended = not self.env.agents
         shown = list(infos) if ended else deciders
         self.agents = [] if ended else deciders
         paid = {a: self._earned[a] for a in shown}
@@ -102,6 +92,21 @@ class DecidersOnly:
             {a: truncs[a] for a in shown},
             {a: infos[a] for a in shown},
         )
+
+    def _until_someone_decides(
+        self, actions: dict[str, Any]
+    ) -> tuple[dict[str, Any], dict[str, bool], dict[str, bool], dict[str, Any], list[str]]:
+        """Step the plain env with `actions`, then with none, until some robot must decide or the
+        episode ends; every reward paid on the way is added to its robot's earnings. Returns the
+        last step's observations, terminations, truncations and infos, and who must decide."""
+        while True:
+            obs, rewards, terms, truncs, infos = self.env.step(actions)
+            actions = {}
+            for a, r in rewards.items():
+                self._earned[a] += r
+            deciders = [a for a in infos if infos[a]["action_required"]]
+            if deciders or not self.env.agents:
+                return obs, terms, truncs, infos, deciders
 
     def state(self) -> np.ndarray:
         return self.env.state()

@@ -25,7 +25,8 @@ from gymnasium import spaces
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
 import tavc_env
-from tavc_env._validation import is_number, require
+from tavc_env._validation import require
+from tavc_env.adapters import checked_reward_scale
 from tavc_env.adapters.deciders import DecidersOnly
 
 RLLIB_OBS_KEY = "observations"  # the key RLlib's action-masking module reads
@@ -44,13 +45,7 @@ class RllibArenaEnv(MultiAgentEnv):
         kwargs = dict(config or {})
         deciders_only = kwargs.pop("deciders_only", True)
         require(isinstance(deciders_only, bool), "deciders_only", deciders_only, "True or False")
-        self.reward_scale = kwargs.pop("reward_scale", 1.0)
-        require(
-            is_number(self.reward_scale) and self.reward_scale > 0,
-            "reward_scale",
-            self.reward_scale,
-            "a number > 0",
-        )
+        self.reward_scale = checked_reward_scale(kwargs.pop("reward_scale", 1.0))
         arena = tavc_env.parallel_env(**kwargs)
         self.arena = arena
         self.view: Any = DecidersOnly(arena) if deciders_only else arena

@@ -22,7 +22,8 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
 import tavc_env
-from tavc_env._validation import is_integer, is_number, require
+from tavc_env._validation import is_integer, require
+from tavc_env.adapters import checked_reward_scale
 
 
 class SharedPolicyVecEnv(VecEnv):
@@ -36,13 +37,7 @@ class SharedPolicyVecEnv(VecEnv):
 
     def __init__(self, n_envs: int = 1, reward_scale: float = 1.0, **env_kwargs: Any) -> None:
         require(is_integer(n_envs) and n_envs >= 1, "n_envs", n_envs, "an integer >= 1")
-        require(
-            is_number(reward_scale) and reward_scale > 0,
-            "reward_scale",
-            reward_scale,
-            "a number > 0",
-        )
-        self.reward_scale = float(reward_scale)
+        self.reward_scale = checked_reward_scale(reward_scale)
         fmt = env_kwargs.pop("observation_format", "box")
         require(fmt == "box", "observation_format", fmt, "'box' (SB3's MlpPolicy takes a vector)")
         self.envs = [
