@@ -141,13 +141,11 @@ def summary(result: TrialResult, allocator: str) -> str:
     """A trial's measured period as a small table."""
     import numpy as np
 
+    from agents.analysis import allocation
     from tavc_env import metrics
 
     t0, t1 = result.measured_window
-    n = len(result.agents)
-    perf = metrics.value_rate(
-        result.delivery_time_s, result.delivery_circuit, result.values, n, t0, t1
-    )
+    perf = allocation.delivered_performance(result, t0, t1)
     shares = [
         metrics.time_share(result.initial_circuits, result.changes, c, t0, t1)
         for c in range(len(result.values))
@@ -157,8 +155,8 @@ def summary(result: TrialResult, allocator: str) -> str:
         f"{allocator} on {result.env_kwargs.get('preset', 'dahl2004')}, seed {result.seed}: "
         f"measured {(t1 - t0) / 3600:g} h after {t0 / 3600:g} h",
         f"  delivered value per robot per 10 s: {perf:.4f}",
-        f"  circuit switches per robot per hour: "
-        f"{sum(1 for t, _, _ in result.changes if t0 <= t < t1) / n / ((t1 - t0) / 3600):.2f}",
+        "  circuit switches per robot per hour: "
+        f"{allocation.switches_per_robot_h(result, t0, t1):.2f}",
         f"  share of time on each circuit (circuit values {[round(w) for w in result.values]}):",
     ]
     for cls in classes:

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.analysis import allocation
 from agents.analysis.measures import measure
 from agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from agents.analysis.stats import mean_ci
@@ -116,10 +117,8 @@ def evaluate_network(
         NetworkTeam(mlp), seed=seed, convergence_s=0.0, measured_s=hours * 3600.0, **arena
     )
     m = measure(result)
-    n = len(result.agents)
-    return Evaluation(
-        seed, hours, m.performance, m.fast_share, m.slow_share, len(result.changes) / n / hours
-    )
+    switches = allocation.switches_per_robot_h(result, *result.measured_window)
+    return Evaluation(seed, hours, m.performance, m.fast_share, m.slow_share, switches)
 
 
 @dataclass(frozen=True)
@@ -221,13 +220,10 @@ def what_it_learned(run: LearningRun) -> str:
     assert run.mlp is not None
     config = make_config(str(run.env_kwargs["preset"]))
     n, m = config.n_robots, config.n_circuits
-    choice = [
-        [
-            int(np.argmax(run.mlp.scores(np.concatenate([np.eye(m)[c], np.eye(n)[i]]))))
-            for c in range(m)
-        ]
-        for i in range(n)
-    ]
+    agents = [f"robot_{i}" for i in range(n)]
+    robots = NetworkTeam(run.mlp).policies(agents, config)  # the allocator itself, asked
+    every = np.ones(m, np.int8)
+    choice = [[robots[a].act(np.eye(m)[c], every) for c in range(m)] for a in agents]
     rows = [
         [f"robot_{i}", config.robots[i].speed_class, *(str(a) for a in choice[i])] for i in range(n)
     ]
