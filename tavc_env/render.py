@@ -49,6 +49,11 @@ class Renderer:
         self.surface = pygame.Surface(self.size)
         self.window: Any = None
         self.font = pygame.font.Font(None, 22)
+        # speed classes, fastest first, with their (top) speeds: the readout and the legend
+        speeds: dict[str, float] = {}
+        for r in config.robots:
+            speeds[r.speed_class] = max(speeds.get(r.speed_class, 0.0), r.speed)
+        self.class_speeds = dict(sorted(speeds.items(), key=lambda item: -item[1]))
 
     def _px(self, p: np.ndarray | tuple[float, float]) -> tuple[int, int]:
         x = MARGIN_PX + p[0] * PIXELS_PER_M
@@ -102,10 +107,7 @@ class Renderer:
             pygame.draw.circle(surf, ring, centre, radius, 3)
         counts = np.bincount(sim.circuits[~broken], minlength=cfg.n_circuits)
         high = int(np.argmax(sim.values))
-        labels = sorted(
-            {r.speed_class for r in cfg.robots},
-            key=lambda c: -max(r.speed for r in cfg.robots if r.speed_class == c),
-        )
+        labels = list(self.class_speeds)
         on_high = [
             sum(
                 1
@@ -124,7 +126,7 @@ class Renderer:
         for k, text in enumerate(lines):
             label = self.font.render(text, True, (20, 20, 20))
             surf.blit(label, (MARGIN_PX, self.size[1] - PANEL_PX + 8 + 22 * k))
-        self._legend(labels, sim.values, self.size[1] - PANEL_PX + 8 + 44)
+        self._legend(sim.values, self.size[1] - PANEL_PX + 8 + 44)
         if self.mode == "human":
             if self.window is None:
                 pygame.display.init()
@@ -135,14 +137,13 @@ class Renderer:
             return None
         return np.transpose(pygame.surfarray.array3d(surf), (1, 0, 2)).copy()
 
-    def _legend(self, classes: list[str], values: np.ndarray, y: int) -> None:
-        """One line: a disc per speed class (with its speed), a square per circuit (with its value;
-        a robot's ring is the colour of the circuit it serves)."""
+    def _legend(self, values: np.ndarray, y: int) -> None:
+        """Two lines: a disc per speed class (with its speed) and a square per circuit (with its
+        value), then what rings, shapes and lines mean."""
         cfg = self.config
         x = MARGIN_PX
         items: list[tuple[str, tuple[int, int, int], str]] = []
-        for label in classes:
-            speed = max(r.speed for r in cfg.robots if r.speed_class == label)
+        for label, speed in self.class_speeds.items():
             items.append(
                 ("disc", CLASS_COLOURS.get(label, OTHER_COLOUR), f"{label} {speed:.2f} m/s")
             )
