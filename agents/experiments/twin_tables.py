@@ -18,12 +18,18 @@ for every seed:
 
 Runs have no breakdowns (the twin applies the arena's own schedule). One circuit cannot be
 measured this way (every robot would always serve it), so the arena needs two or more.
+
+`random_allocation_run` checks the tables where they are least like their measuring runs: every
+robot picks a circuit at random at every decision, so crowds change all the time and half the
+tasks are switches. It drives either engine, the physics or the twin's, with the same choices.
 """
 
 from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -31,10 +37,12 @@ from agents.experiments.elasticity import arena_overrides
 from agents.experiments.measurement import FixedAllocation, FixedRun, run_fixed
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
+from tavc_env.engine.simulation import Simulation
 from tavc_env.twin import (
     CellKey,
     InterferenceTables,
     TaskTimeCell,
+    TaskTimeProcess,
     required_cells,
     team_classes,
 )
@@ -213,3 +221,88 @@ def build_tables(
             f"from {len(ratios)} switcher ratios"
         ),
     )
+
+
+# -- checking the tables under random allocation --------------------------------------------------
+@dataclass(frozen=True)
+class RandomTask:
+    """A task of a random-allocation run: the robot's class, its circuit, the robots of each
+    class working on that circuit once everyone deciding at that moment had chosen (itself
+    included: the twin's cell), whether it switched circuits, and its time."""
+
+    robot_class: str
+    circuit: int
+    counts: tuple[int, ...]
+    switch: bool
+    task_time_s: float
+
+
+@dataclass(frozen=True)
+class RandomRun:
+    """What `random_allocation_run` measured: the tasks decided in the window [warm-up, end) and
+    completed by the end, and the value delivered per robot per 10 s within the window (each
+    delivery w / max w, as `tavc_env.metrics`)."""
+
+    tasks: tuple[RandomTask, ...]
+    performance: float
+
+
+def random_allocation_run(
+    config: ArenaConfig,
+    seed: int,
+    hours: float,
+    warmup_s: float,
+    engine: Literal["physics", "twin"] = "physics",
+    tables: InterferenceTables | None = None,
+) -> RandomRun:
+    """Run `config` without breakdowns for `hours`, every deciding robot choosing a circuit
+    uniformly at random (a generator seeded [seed, 1]; the engine's own is seeded `seed`), on
+    the physics or on the twin with `tables`."""
+    base = config.replace(breakdowns=())
+    if engine == "twin":
+        require(tables is not None, "tables", tables, "the twin's InterferenceTables")
+        assert tables is not None
+        sim: Simulation | TaskTimeProcess = TaskTimeProcess(base, tables)
+    else:
+        sim = Simulation(base)
+    classes, _ = team_classes(base)
+    robot_class = [r.speed_class for r in base.robots]
+    values = [c.value for c in base.circuits]
+    n, m = base.n_robots, base.n_circuits
+    end_s = hours * 3600.0
+    choices = np.random.default_rng([seed, 1])
+    sim.reset(np.random.default_rng(seed))
+    pending: dict[int, tuple[float, tuple[int, ...], bool]] = {}
+
+    def decide(robots: Sequence[int]) -> None:
+        switched = {}
+        for i in robots:
+            k = int(choices.integers(m))
+            switched[i] = k != int(sim.tasks.circuit[i])
+            sim.choose(i, k)
+        on = [int(k) for k in sim.tasks.circuit]
+        for i in robots:
+            k = on[i]
+            counts = tuple(
+                sum(1 for j in range(n) if on[j] == k and robot_class[j] == c) for c in classes
+            )
+            pending[i] = (sim.time_s, counts, switched[i])
+
+    decide(range(n))
+    tasks: list[RandomTask] = []
+    delivered = 0.0
+    while sim.time_s < end_s:
+        out = sim.advance(end_s - sim.time_s)
+        for comp in out.completions:
+            decided_s, counts, switch = pending.pop(comp.robot)
+            if comp.time_s >= warmup_s:
+                delivered += values[comp.circuit] / max(values)
+            if decided_s >= warmup_s:
+                tasks.append(
+                    RandomTask(
+                        robot_class[comp.robot], comp.circuit, counts, switch, comp.task_time_s
+                    )
+                )
+        decide([comp.robot for comp in out.completions])
+    performance = delivered / n / (end_s - warmup_s) * 10.0
+    return RandomRun(tuple(tasks), performance)

@@ -26,6 +26,7 @@ STUDIES: dict[str, str] = {
         "liveness",
         "congestion_design",
         "regime_map",
+        "twin_audit",
         "cli_startup",
     )
 }

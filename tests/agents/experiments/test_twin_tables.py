@@ -14,7 +14,7 @@ import pytest
 import tavc_env
 from agents.experiments.registry import make_allocator
 from agents.experiments.runner import Event, TrialResult, run_trial
-from agents.experiments.twin_tables import allocation_for, build_tables
+from agents.experiments.twin_tables import allocation_for, build_tables, random_allocation_run
 from tavc_env.twin import InterferenceTables, TwinArenaEnv
 
 DAHL = tavc_env.preset("dahl2004")
@@ -170,3 +170,33 @@ def test_build_refuses_what_it_cannot_measure() -> None:
     with pytest.raises(ValueError, match=r"seeds = \(\)"):
         build_tables(two, seeds=())
     assert math.isfinite(TABLES.switch_cost)
+
+
+# -- random allocation on either engine ---------------------------------------------------------
+
+
+def test_random_allocation_on_a_deterministic_twin_meets_its_cells_exactly() -> None:
+    exact = InterferenceTables.from_function(DAHL, mean_of, 0.0, switch_cost=1.5)
+    run = random_allocation_run(
+        DAHL, seed=4, hours=2.0, warmup_s=600.0, engine="twin", tables=exact
+    )
+    switches = [t for t in run.tasks if t.switch]
+    assert 0.3 < len(switches) / len(run.tasks) < 0.7  # two circuits: half the choices switch
+    for task in run.tasks:
+        cell = exact.cell(task.circuit, task.counts, task.robot_class)
+        assert task.task_time_s == pytest.approx(cell.mean_s * (1.5 if task.switch else 1.0))
+        assert sum(task.counts) >= 1 and task.counts[exact.classes.index(task.robot_class)] >= 1
+    values = [c.value for c in DAHL.circuits]
+    assert 0 < run.performance < 10.0 * len(DAHL.robots) / 60.0 * max(values)
+    again = random_allocation_run(DAHL, 4, 2.0, 600.0, "twin", exact)
+    assert again == run
+
+
+def test_random_allocation_in_the_physics_counts_what_it_runs() -> None:
+    run = random_allocation_run(DAHL, seed=1, hours=0.3, warmup_s=300.0)
+    assert run.tasks and all(t.task_time_s > 0 for t in run.tasks)
+    assert {t.robot_class for t in run.tasks} == {"fast", "slow"}
+    assert 0.05 < run.performance < 0.2  # the paper's scale: about 0.1 per robot per 10 s
+    assert random_allocation_run(DAHL, 1, 0.3, 300.0) == run
+    with pytest.raises(ValueError, match=r"^tables = None is invalid"):
+        random_allocation_run(DAHL, 1, 0.3, 300.0, engine="twin")
