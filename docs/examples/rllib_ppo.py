@@ -7,7 +7,7 @@ policy is shared by all robots; RLlib's own action-masking module reads the mask
 
     pip install "tavc-env[marl]"
     python docs/examples/rllib_ppo.py --iterations 2 --batch 200 --eval-every 1 --eval-hours 0.2 --out /tmp/rllib
-    python docs/examples/rllib_ppo.py --out docs/examples/results/rllib_ppo
+    python docs/examples/rllib_ppo.py --preset dahl2004 --out benchmarks/results/marl/rllib_ppo_dahl2004
 
 After every `--eval-every` iterations the policy network is exported
 (`agents.learners.network.Mlp`) and run greedily on physics; `--out` gets the learning curve (CSV +

@@ -7,7 +7,7 @@ the robot's index, so the shared network can tell robots apart.
 
     pip install "tavc-env[marl]"
     python docs/examples/sb3_maskable_ppo.py --updates 2 --eval-every 1 --eval-hours 0.2 --out /tmp/sb3
-    python docs/examples/sb3_maskable_ppo.py --out docs/examples/results/sb3_maskable_ppo
+    python docs/examples/sb3_maskable_ppo.py --preset dahl2004 --out benchmarks/results/marl/sb3_maskable_ppo_dahl2004
 
 After every `--eval-every` updates the network is exported (`agents.learners.network.Mlp`) and run
 greedily on physics; `--out` gets the learning curve (CSV + PNG), the final evaluation on fresh

@@ -7,7 +7,7 @@ observation); the critic is centralised (it sees every robot's observation), whi
 
     pip install "tavc-env[marl]"
     python docs/examples/torchrl_mappo.py --updates 2 --batch 200 --eval-every 1 --eval-hours 0.2 --out /tmp/mappo
-    python docs/examples/torchrl_mappo.py --out docs/examples/results/torchrl_mappo
+    python docs/examples/torchrl_mappo.py --preset dahl2004 --out benchmarks/results/marl/torchrl_mappo_dahl2004
 
 After every `--eval-every` batches the actor is exported (`agents.learners.network.Mlp`) and run
 greedily on physics; `--out` gets the learning curve (CSV + PNG), the final evaluation on fresh

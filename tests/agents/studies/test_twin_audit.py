@@ -67,6 +67,11 @@ def test_its_tables_are_the_regime_maps() -> None:
     stored = RESULTS_DIR / "regime_map" / "twin_tables" / "tables_dahl2004.json"
     record = json.loads(stored.read_text())["record"]
     assert record["seeds"] == list(seeds) and record["hours"] == hours
+    for arena in study.regime_map.ARENAS:  # measured again by the audit: the very same numbers
+        name = f"tables_{arena}.json"
+        again = json.loads((RESULTS_DIR / "twin_audit" / "twin_tables" / name).read_text())
+        first = json.loads((RESULTS_DIR / "regime_map" / "twin_tables" / name).read_text())
+        assert again["result"] == first["result"]
 
 
 def test_the_committed_report_has_its_settings_and_every_arena() -> None:
