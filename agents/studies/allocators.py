@@ -1,8 +1,11 @@
 """TAVC against the MRTA baselines the paper lacked, on `dahl2004` and a harder preset.
 
-Every allocator -- random, epsilon-greedy TAVC, softmax TAVC (the paper's three), static at the
-model optimum, greedy on the model's slot values, a MURDOCH / TraderBots-style auction and a
-Bonabeau-style response-threshold allocator -- runs `--trials` trials per preset (default 10 x
+Every allocator -- random, `stay` (keep the circuit the start gave), epsilon-greedy TAVC, softmax
+TAVC (the paper's three), static at the model optimum, greedy on the model's slot values, a
+MURDOCH / TraderBots-style auction, a Bonabeau-style response-threshold allocator, and every
+trained deep MARL network found for the preset (`--networks`: learning runs of `docs/examples`,
+in `--network-dir` (`benchmarks/results/marl/`) `<run>_<preset>/network.npz`, run greedily) --
+runs `--trials` trials per preset (default 10 x
 (15 h + 5 h measured), the paper's periods). Reported per allocator, with 95 % intervals over
 trials:
 
@@ -11,6 +14,8 @@ trials:
 * the model value of the allocation itself (time-weighted over the measured period; the gap to the
   delivered value is what switching and transients cost);
 * circuit switches per robot per hour;
+* the model value of the start's allocation (the reset's even spread, drawn from the seed, the same
+  for every allocator): how much of any allocator's score the reset hands it;
 * time to settle: the start of the first 2-hour window in which the mean model value of the current
   allocation is within 3 % of its measured-period mean (never: `inf`).
 
@@ -47,12 +52,14 @@ from tavc_env import make_config
 
 PresetName = Literal["dahl2004", "three_circuits_three_classes"]
 PRESETS: tuple[PresetName, ...] = ("dahl2004", "three_circuits_three_classes")
+NETWORK_RUNS = ("sb3_maskable_ppo", "torchrl_mappo", "rllib_ppo")
 SETTLE_BAND = 0.03
 SETTLE_WINDOW_H = 2
 TRIAL_MEASURES = (
     "performance",
     "fraction_of_optimum",
     "allocation_value_fraction",
+    "start_value_fraction",
     "switches_per_robot_h",
 )
 
@@ -73,6 +80,10 @@ class Settings(SweepOptions):
     """smoke run: 2 trials of 1 h + 1 h"""
     model: tuple[Path, ...] | None = None
     """model.json per preset (default: the committed ones)"""
+    networks: tuple[str, ...] = NETWORK_RUNS
+    """learning runs whose trained network joins the comparison where one exists for the preset"""
+    network_dir: Path = RESULTS_DIR / "marl"
+    """where the learning runs are (`<run>_<preset>/network.npz`)"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -118,7 +129,14 @@ class Settings(SweepOptions):
             "out": str(self.out_dir()),
             "quick": str(s.quick),
             "model": str(None if s.model is None else list(s.model)),
+            "networks": str(list(s.networks)),
+            "network_dir": str(s.network_dir),
         }
+
+    def network_paths(self, preset: str) -> dict[str, Path]:
+        """The trained networks found for `preset`, by learning run."""
+        found = {run: self.network_dir / f"{run}_{preset}" / "network.npz" for run in self.networks}
+        return {run: path for run, path in found.items() if path.is_file()}
 
 
 def _int(x: int) -> bool:
@@ -131,22 +149,36 @@ def _finite(x: float) -> bool:
 
 @dataclass(frozen=True)
 class Allocator:
-    name: str  # registry name
+    name: str  # the row's name in trial keys, tables and trials.csv
     label: str
     kwargs: Mapping[str, Any]
+    registry: str = ""  # the allocator's registry name, if not `name`
+
+    @property
+    def allocator(self) -> str:
+        return self.registry or self.name
 
 
-def allocators(model: CompletionModel) -> list[Allocator]:
-    """The allocators compared, in report order (the model-based ones get `model`)."""
+def allocators(
+    model: CompletionModel, networks: Mapping[str, Path] | None = None
+) -> list[Allocator]:
+    """The allocators compared, in report order (the model-based ones get `model`; `networks`:
+    trained networks by learning run)."""
     m = model.to_dict()
+    trained = [
+        Allocator(f"network_{run}", f"{run} (trained network)", {"weights": str(path)}, "network")
+        for run, path in (networks or {}).items()
+    ]
     return [
         Allocator("random", "random", {}),
+        Allocator("stay", "stay (the start's circuits)", {}),
         Allocator("epsilon_tavc", "epsilon TAVC", {"epsilon": 0.1, "init": "scaled"}),
         Allocator("softmax_tavc", "softmax TAVC", {"temperature": 0.005, "init": "scaled"}),
         Allocator("response_threshold", "response threshold", {}),
         Allocator("auction", "auction", {"model": m}),
         Allocator("greedy", "greedy (model)", {"model": m}),
         Allocator("static", "static (model optimum)", {"model": m}),
+        *trained,
     ]
 
 
@@ -164,11 +196,11 @@ def trial_spec(
 ) -> TrialSpec:
     """The trial of allocator `name` on `preset` with `seed` (tagged with the three)."""
     s = settings.sized()
-    chosen = next(a for a in allocators(model) if a.name == name)
+    chosen = next(a for a in allocators(model, settings.network_paths(preset)) if a.name == name)
     tags: dict[str, TagValue] = {"preset": preset, "allocator": name, "seed": seed}
     return TrialSpec(
         key=trial_key(tags),
-        allocator=chosen.name,
+        allocator=chosen.allocator,
         allocator_kwargs=chosen.kwargs,
         seed=seed,
         env_kwargs={"preset": preset},
@@ -184,7 +216,7 @@ def specs(settings: Settings, by_preset: Mapping[str, CompletionModel]) -> list[
     return [
         trial_spec(settings, by_preset[p], p, a.name, seed)
         for p in settings.presets
-        for a in allocators(by_preset[p])
+        for a in allocators(by_preset[p], settings.network_paths(p))
         for seed in range(trials)
     ]
 
@@ -199,7 +231,8 @@ def run(settings: Settings) -> Outcome:
     summary: list[dict[str, Any]] = []
     sections = []
     for preset in settings.presets:
-        rows = summarise([r for r in per_trial if r["preset"] == preset], by_preset[preset])
+        compared = allocators(by_preset[preset], settings.network_paths(preset))
+        rows = summarise([r for r in per_trial if r["preset"] == preset], compared)
         summary += rows
         sections.append(preset_section(rows, by_preset[preset], preset))
     s = settings.sized()
@@ -232,6 +265,10 @@ def measure(
         "performance": perf,
         "fraction_of_optimum": perf / optimum,
         "allocation_value_fraction": held / optimum,
+        "start_value_fraction": model.mean_performance(
+            result.initial_circuits, [], classes, 0.0, 1.0
+        )
+        / optimum,
         "switches_per_robot_h": allocation.switches_per_robot_h(result, t0, t1),
         "settle_h": allocation.settle_time_h(
             result, model, classes, held, SETTLE_BAND, SETTLE_WINDOW_H
@@ -260,16 +297,18 @@ def trial_rows(
     ]
 
 
-def summarise(rows: Sequence[Mapping[str, Any]], model: CompletionModel) -> list[dict[str, Any]]:
+def summarise(
+    rows: Sequence[Mapping[str, Any]], compared: Sequence[Allocator]
+) -> list[dict[str, Any]]:
     """Per allocator (of one preset's trial rows): every measure's mean and 95 % interval, the
     ratio to random, and the median settle time."""
     preset = rows[0]["preset"]
-    by: dict[str, list[Mapping[str, Any]]] = {a.name: [] for a in allocators(model)}
+    by: dict[str, list[Mapping[str, Any]]] = {a.name: [] for a in compared}
     for trial in rows:
         by[trial["allocator"]].append(trial)
     random_perf = [r["performance"] for r in by["random"]]
     summary = []
-    for a in allocators(model):
+    for a in compared:
         mine = by[a.name]
         settle = np.array([r["settle_h"] for r in mine])
         row: dict[str, Any] = {"preset": preset, "allocator": a.name, "label": a.label}
@@ -318,11 +357,15 @@ def preset_section(
         for r in summary
     ]
     described = " | ".join(f"c{i}: {model.describe(g)}" for i, g in enumerate(optimum))
+    start = summary[0]  # the same starts for every allocator (the same seeds)
     return "\n".join(
         [
             f"### {preset}",
             "",
             f"Model optimum: {described} = {model.performance(optimum):.4f} per robot per 10 s.",
+            "The start's allocation (the reset spreads the robots evenly over the circuits, in an "
+            f"order drawn from the seed) is worth {_ci(start, 'start_value_fraction', 3)} of the "
+            "optimum by the model: that much of every allocator's score the reset hands it.",
             "",
             markdown_table(header, rows),
         ]

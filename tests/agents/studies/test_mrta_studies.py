@@ -17,8 +17,10 @@ from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import pytest
 
+from agents.learners.network import Mlp
 from agents.studies import allocators, tavc_model, vacancy_chain
 from agents.studies.common import RESULTS_DIR
 
@@ -65,7 +67,16 @@ VACANCY_TINY = ["--trials", "2", "--convergence-h", "0.02", "--phase-h", "0.02",
 @pytest.fixture(scope="module")
 def allocators_run(model_run: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     out = tmp_path_factory.mktemp("allocators")
+    # a trained network stands in: random weights of the right shape (paper_id: 2 + 6 inputs)
+    nets = tmp_path_factory.mktemp("marl")
+    (nets / "tiny_dahl2004").mkdir()
+    rng = np.random.default_rng(0)
+    shapes = [(16, 8), (2, 16)]
+    Mlp(
+        tuple(rng.normal(size=s) for s in shapes), tuple(rng.normal(size=s[0]) for s in shapes)
+    ).save(nets / "tiny_dahl2004" / "network.npz")
     argv = [*ALLOCATORS_TINY, "--out", str(out), "--model", str(model_run / "model.json")]
+    argv += ["--networks", "tiny", "absent", "--network-dir", str(nets)]
     printed = quietly("allocators", argv)
     settings = allocators.Settings(
         presets=("dahl2004",),
@@ -75,6 +86,8 @@ def allocators_run(model_run: Path, tmp_path_factory: pytest.TempPathFactory) ->
         workers=1,
         out=out,
         model=(model_run / "model.json",),
+        networks=("tiny", "absent"),
+        network_dir=nets,
     )
     return {"out": out, "printed": printed, "settings": settings}
 
@@ -133,22 +146,27 @@ def test_allocators_against_the_model(allocators_run: dict[str, object]) -> None
     summary = {r["allocator"]: r for r in rows(out / "allocators.csv")}
     assert list(summary) == [
         "random",
+        "stay",
         "epsilon_tavc",
         "softmax_tavc",
         "response_threshold",
         "auction",
         "greedy",
         "static",
+        "network_tiny",  # (no network of the run 'absent': no row)
     ]
     assert float(summary["static"]["allocation_value_fraction"]) == pytest.approx(1.0)
+    assert float(summary["stay"]["switches_per_robot_h"]) == 0.0
+    # the start's model value is the same for every allocator (the same seeds, the same starts)
+    assert len({r["start_value_fraction"] for r in summary.values()}) == 1
     assert float(summary["static"]["switches_per_robot_h"]) == 0.0
     assert float(summary["random"]["vs_random"]) == pytest.approx(1.0)
     trials = rows(out / "trials.csv")
-    assert len(trials) == 14
+    assert len(trials) == 18
     assert [(r["allocator"], r["seed"]) for r in trials[:3]] == [
         ("random", "0"),
         ("random", "1"),
-        ("epsilon_tavc", "0"),
+        ("stay", "0"),
     ]
     assert (out / "cache" / "trials" / "dahl2004__static_s1.json").exists()
     printed = allocators_run["printed"]
