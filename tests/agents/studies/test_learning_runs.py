@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -55,3 +56,32 @@ def test_run_options_refuse_bad_values_before_training(
 ) -> None:
     with pytest.raises(ValueError, match=pattern):
         RunOptions(**kwargs)  # type: ignore[arg-type]
+
+
+def test_every_committed_learning_run_is_whole_and_says_what_it_ran() -> None:
+    from agents.studies.allocators import NETWORK_RUNS, PRESETS
+    from agents.studies.common import RESULTS_DIR
+
+    folders = sorted((RESULTS_DIR / "marl").iterdir())
+    assert len(folders) >= 3
+    for folder in folders:
+        named = [(folder.name.removesuffix(f"_{p}"), p) for p in PRESETS]
+        run, preset = next((r, p) for r, p in named if r != folder.name)  # <run>_<preset>
+        assert run in NETWORK_RUNS, folder.name
+        assert {p.name for p in folder.iterdir()} >= {
+            "curve.csv",
+            "curve.png",
+            "evaluation.md",
+            "evaluation.json",
+            "evaluation.csv",
+            "network.npz",
+        }
+        report = json.loads((folder / "evaluation.json").read_text())
+        assert report["metadata"]["settings"]["preset"] == preset
+        assert report["metadata"]["settings"]["final_seeds"] == 10
+        config = make_config(preset)
+        mlp = Mlp.load(folder / "network.npz")
+        assert mlp.n_outputs == config.n_circuits
+        assert mlp.n_inputs == config.n_circuits + config.n_robots  # the paper_id observation
+        curve = (folder / "curve.csv").read_text().splitlines()
+        assert curve[1].startswith("0,") and len(curve) == 1 + 11  # step 0, then every 10th update
