@@ -45,7 +45,7 @@ from agents.analysis.stats import mean_ci, ratio_ci
 from agents.experiments.runner import TrialResult
 from agents.experiments.sweep import TagValue, TrialSpec
 from agents.model import CompletionModel, SpeedClasses
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, run_trials
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, run_trials
 from agents.studies.row_check import compare_rows, run_fresh, sample_rows
 from agents.studies.tavc_model import load_model, missing_model
 from tavc_env import make_config
@@ -93,9 +93,7 @@ class Settings(SweepOptions):
             ("convergence_h", _finite(self.convergence_h) and self.convergence_h >= 0, ">= 0"),
             ("measured_h", _finite(self.measured_h) and self.measured_h > 0, "> 0"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
         if self.model is not None and len(self.model) != len(self.presets):
             raise ValueError(
                 f"model = {self.model!r} is invalid; allowed: one path per preset {self.presets}"

@@ -99,6 +99,14 @@ class SweepOptions:
         return self.run_dir
 
 
+def refuse_invalid(settings: object, checks: Sequence[tuple[str, bool, str]]) -> None:
+    """A ValueError for the first (field name, is valid, what is allowed) of `checks` that is not
+    valid, naming the field and its value in `settings`."""
+    for name, ok, allowed in checks:
+        if not ok:
+            raise ValueError(f"{name} = {getattr(settings, name)!r} is invalid; allowed: {allowed}")
+
+
 def new_run_dir(study: str) -> Path:
     """A run folder that does not exist yet: `runs/<study>-<UTC time>[-k]`."""
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")

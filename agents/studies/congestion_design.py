@@ -45,7 +45,7 @@ from agents.analysis.stats import ratio_ci
 from agents.experiments.measurement import two_circuit_allocation
 from agents.experiments.provenance import run_recorded
 from agents.studies import interference as study
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
 from agents.studies.elasticity import BOOT_SEED, elasticity_jobs
 from tavc_env import ArenaConfig, make_config
 
@@ -111,9 +111,7 @@ class Settings(SweepOptions):
             ("hours", math.isfinite(self.hours) and self.hours > 0, "> 0"),
             ("knee", math.isfinite(self.knee) and self.knee >= 1, ">= 1"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
 
     def sized(self) -> Settings:
         return replace(self, seeds=2, hours=0.4) if self.quick else self

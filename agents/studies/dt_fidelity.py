@@ -23,7 +23,7 @@ from agents.experiments.measurement import FixedAllocation, run_fixed, two_circu
 from agents.experiments.provenance import run_recorded
 from agents.experiments.runner import run_trial
 from agents.experiments.sweep import json_jobs
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
 from tavc_env import make_config
 
 HOMOG = "dahl2004_homogeneous"
@@ -54,9 +54,7 @@ class Settings(SweepOptions):
             ("tolerance", math.isfinite(self.tolerance) and self.tolerance > 0, "> 0"),
             ("dts", len(self.dts) >= 1, "one or more steps"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
         for dt in self.dts:
             try:
                 make_config("dahl2004", dt=dt)

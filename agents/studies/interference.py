@@ -32,6 +32,7 @@ from agents.studies.common import (
     Overrides,
     SweepOptions,
     arena_overrides,
+    refuse_invalid,
     replace,
 )
 
@@ -83,9 +84,7 @@ class Settings(SweepOptions):
                 "an integer >= 2 (a block needs own-circuit tasks to compare with)",
             ),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
         team = (FAST,) * PER_CLASS + (SLOW,) * PER_CLASS
         presets = sorted(
             name

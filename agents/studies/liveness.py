@@ -43,7 +43,7 @@ from agents.experiments.provenance import run_recorded
 from agents.experiments.registry import make_allocator
 from agents.experiments.runner import run_trial
 from agents.experiments.sweep import json_jobs
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid
 from tavc_env.config import ArenaConfig, Robot
 from tavc_env.engine.simulation import JAM_MOTION_M, JAM_WINDOW_S
 
@@ -125,9 +125,7 @@ class Settings(SweepOptions):
             ("random_seeds", _int(self.random_seeds, 1), "an integer >= 1"),
             ("max_gap_min", _positive(self.max_gap_min), "> 0"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
 
     def sized(self) -> Settings:
         """These settings with `--quick`'s sizes applied."""

@@ -22,7 +22,7 @@ from agents.analysis.reports import CsvAppender, Report, fmt_ci, markdown_table
 from agents.experiments.measurement import SpacingMonitor
 from agents.experiments.provenance import run_recorded
 from agents.experiments.sweep import json_jobs
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
 from tavc_env.engine.navigation import STUCK_PATIENCE_S
 from tavc_env.engine.tasks import PHASE_NAMES, Mode, Phase
 from tavc_env.env import completed_task_s
@@ -61,9 +61,7 @@ class Settings(SweepOptions):
             ("max_gap_min", math.isfinite(self.max_gap_min) and self.max_gap_min > 0, "> 0"),
             ("preset", self.preset in tavc_env.PRESETS, f"one of {sorted(tavc_env.PRESETS)}"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
 
     def sized(self) -> Settings:
         """These settings with `--quick`'s sizes applied."""

@@ -46,7 +46,7 @@ from agents.experiments.registry import make_allocator
 from agents.experiments.runner import run_trial
 from agents.experiments.sweep import arena_digest, json_jobs, run_jobs, saved_results
 from agents.experiments.twin_tables import build_tables
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
 from agents.studies.elasticity import measure_elasticity
 from tavc_env import metrics
 from tavc_env.twin import InterferenceTables
@@ -157,9 +157,7 @@ class Settings(SweepOptions):
             ("table_hours", _positive(self.table_hours), "a finite number > 0"),
             ("seed", _positive_int(self.seed, 0), "an integer >= 0"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
 
     @property
     def arena_list(self) -> list[str]:

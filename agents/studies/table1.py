@@ -47,6 +47,7 @@ from agents.studies.common import (
     compare_tables,
     differing_cells,
     recorded_settings,
+    refuse_invalid,
     run_trials,
 )
 from tavc_env import PRESETS, make_config, metrics
@@ -111,9 +112,7 @@ class Settings(SweepOptions):
             ("temperature", _finite(self.temperature) and self.temperature > 0, "> 0"),
             ("epsilon", _finite(self.epsilon) and 0 <= self.epsilon <= 1, "in [0, 1]"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
         unknown = [c for c in self.chosen if c not in CONDITION_ORDER]
         if unknown or not self.chosen:
             raise ValueError(

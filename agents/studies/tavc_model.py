@@ -39,7 +39,7 @@ from agents.experiments.files import write_text
 from agents.experiments.runner import TrialResult
 from agents.experiments.sweep import TagValue, TrialSpec
 from agents.model import Allocation, CompletionModel, SpeedClasses, model_from_runs, robot_circuits
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, run_trials
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, run_trials
 from tavc_env import PRESETS, ArenaConfig, make_config
 
 
@@ -70,9 +70,7 @@ class Settings(SweepOptions):
             ("check_seeds", _count(self.check_seeds), "an integer >= 1"),
             ("top", _count(self.top), "an integer >= 1"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
 
     def reference_dir(self) -> Path:
         return model_dir(self.preset)

@@ -36,7 +36,7 @@ from agents.experiments.provenance import run_recorded
 from agents.experiments.sweep import json_jobs, run_jobs
 from agents.experiments.twin_tables import random_allocation_run
 from agents.studies import regime_map
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, replace
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
 from tavc_env.twin import InterferenceTables
 
 Row = dict[str, Any]
@@ -83,9 +83,7 @@ class Settings(SweepOptions):
                 "a number of seconds >= 0, shorter than the run",
             ),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
 
     @property
     def arena_list(self) -> list[str]:

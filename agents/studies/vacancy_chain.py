@@ -49,7 +49,7 @@ from agents.analysis.stats import mean_ci
 from agents.experiments.runner import Event, TrialResult
 from agents.experiments.sweep import TagValue, TrialSpec
 from agents.model import CompletionModel, SpeedClasses
-from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, run_trials
+from agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, run_trials
 from agents.studies.row_check import compare_rows, run_fresh, sample_rows
 from agents.studies.tavc_model import load_model, missing_model
 from tavc_env import make_config
@@ -88,9 +88,7 @@ class Settings(SweepOptions):
             ("convergence_h", _finite(self.convergence_h) and self.convergence_h > 0, "> 0"),
             ("phase_h", _finite(self.phase_h) and self.phase_h > 0, "> 0"),
         ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
+        refuse_invalid(self, checks)
         problem = missing_model(PRESET, self.model)
         if problem is not None:
             raise ValueError(
