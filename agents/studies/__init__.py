@@ -27,6 +27,7 @@ STUDIES: dict[str, str] = {
         "congestion_design",
         "regime_map",
         "twin_audit",
+        "twin_batch",
         "cli_startup",
     )
 }
