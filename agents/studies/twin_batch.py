@@ -103,9 +103,13 @@ class Settings(SweepOptions):
     def reference_dir(self) -> Path:
         return RESULTS_DIR / ("twin_batch_quick" if self.quick else "twin_batch")
 
+    def regime_map_settings(self) -> regime_map.Settings:
+        """The settings of the regime map compared with (its defaults, in its folder)."""
+        return regime_map.Settings(out=Path(self.regime_map_dir))
+
     def periods_h(self) -> tuple[float, float]:
         """The regime map's periods (those of the trials compared with)."""
-        kept = regime_map.Settings(out=Path(self.regime_map_dir))
+        kept = self.regime_map_settings()
         return kept.convergence_h, kept.measured_h
 
     def recorded(self) -> dict[str, Any]:
@@ -174,7 +178,7 @@ CELLS = json_jobs(run_cell, cell_key, unit="cell", omit=("tables",))
 
 def reference(s: Settings) -> tuple[dict[str, dict[str, Any]], dict[str, list[dict[str, Any]]]]:
     """The regime map's tables by arena and its twin trials by cell key."""
-    kept = regime_map.Settings(out=Path(s.regime_map_dir))
+    kept = s.regime_map_settings()
     arenas = kept.arena_list
     table_jobs = [
         regime_map.TablesJob(
