@@ -247,6 +247,9 @@ def test_recorded_settings_are_those_of_the_committed_reports() -> None:
         # the default output folder is recorded as an absolute path, wherever the checkout is
         assert committed["out"].endswith(f"benchmarks/results/{name}")
         committed["out"] = str(RESULTS_DIR / name)
+        if "network_dir" in committed:  # likewise the trained networks' folder
+            assert committed["network_dir"].endswith("benchmarks/results/marl")
+            committed["network_dir"] = str(RESULTS_DIR / "marl")
         assert recorded == committed and list(recorded) == list(committed)
 
 
