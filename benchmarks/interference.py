@@ -23,9 +23,9 @@ alternates).
    > 1: fast robots lose more. Its 95% interval is a percentile bootstrap resampling seeds.
    `agents.studies.elasticity.measure_elasticity` measures e alone, for any arena.
 
-`--preset` (default dahl2004; also dahl2004_competence, dahl2004_light_stations) is the arena of
-the cross runs; t(n) and the switch runs use its arena with six robots at 0.25 m/s (for dahl2004:
-the preset dahl2004_homogeneous).
+`--preset` (default dahl2004; also dahl2004_competence, dahl2004_light_stations,
+dahl2004_congestion, dahl2004_bays) is the arena of the cross runs; t(n) and the switch runs use
+its arena with six robots at 0.25 m/s (for dahl2004: the preset dahl2004_homogeneous).
 
 Warm-up: in every run a task counts only if it was *decided* at or after `--warmup-min` (default
 10 simulated minutes) and it is not among the robot's first `--skip-first` (default 2) tasks (the
@@ -44,10 +44,10 @@ mean(switch tasks into c) - mean(own tasks on c), absolute and relative to the o
 over seeds with a Student-t interval.
 
 Writes `interference.{csv,md,json}`, `interference_runs.csv` (one row per run and group) and
-`interference.png` (if matplotlib is installed) into `--out` (default benchmarks/results/). Runs go
-through the package's sweep runner (`--workers`, `--backend local|ray`) and are kept in
-`--out`/cache/interference/ as they finish, so an interrupted benchmark resumes. The study is
-`agents.studies.interference`.
+`interference.png` (if matplotlib is installed) into a new run folder under runs/ (git ignores it),
+`--out`, or with `--update-reference` benchmarks/results/. Runs go through the package's sweep
+runner (`--workers`, `--backend local|ray`) and are kept in the output folder's cache/interference/
+as they finish, so an interrupted benchmark resumes. The study is `agents.studies.interference`.
 
     python benchmarks/interference.py             # 130 runs: 5 seeds x 3 simulated h, ~3-5 min
     python benchmarks/interference.py --quick

@@ -12,9 +12,10 @@ size, the longest gap per team size and overall, the random arenas' refused draw
 the wall time. Exits with status 1 if any trial has an unreported jam: a robot longer than
 `--max-gap-min` (default 60 simulated minutes) without a delivery while the detector found none.
 
-Writes `liveness.{md,csv,json}` (one CSV row per trial) and `provenance.json` into `--out`
-(default benchmarks/results/liveness/); each trial is kept as a small record in `--out`/trials/
-as it finishes, so `--resume RUN_DIR` continues an interrupted run (`--workers`, `--backend local|ray`). The study is
+Writes `liveness.{md,csv,json}` (one CSV row per trial) and `provenance.json` into a new run folder
+under runs/ (git ignores it), `--out`, or with `--update-reference` benchmarks/results/liveness/;
+each trial is kept as a small record in the output folder's trials/ as it finishes, so `--resume
+RUN_DIR` continues an interrupted run (`--workers`, `--backend local|ray`). The study is
 `agents.studies.liveness`.
 
     python benchmarks/liveness.py                 # 156 trials, ~5 min on one core

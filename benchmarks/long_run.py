@@ -12,9 +12,10 @@ Exits with status 1 if any robot's longest gap exceeds `--max-gap-min` (default 
 minutes): a robot that stops completing tasks is a jam or a stuck robot.
 
 Writes `long_run.{csv,md,json}` (per robot summary) and `long_run_tasks_seed<S>.csv` (every
-completion, written as the run goes) into `--out` (default benchmarks/results/). Seeds run through
-the package's sweep runner (`--workers`, `--backend local|ray`) and are kept in
-`--out`/cache/long_run/, so `--resume RUN_DIR` continues an interrupted run. The study is `agents.studies.long_run`.
+completion, written as the run goes) into a new run folder under runs/ (git ignores it), `--out`,
+or with `--update-reference` benchmarks/results/. Seeds run through the package's sweep runner
+(`--workers`, `--backend local|ray`) and are kept in the output folder's cache/long_run/, so
+`--resume RUN_DIR` continues an interrupted run. The study is `agents.studies.long_run`.
 
     python benchmarks/long_run.py                 # 15 simulated hours, seeds 0-3 (~1-2 min wall)
     python benchmarks/long_run.py --quick         # smoke run

@@ -14,10 +14,10 @@ is its own), one core, every robot that must decide picking a circuit uniformly 
 
 The measurements of one size alternate (env, floors, env, floors, ...) `--repeats` times so load
 hits them alike; reported are the means, the best repeat, the ratio env / floor (ticks per second,
-paired by repeat), and the peak resident memory of the size's process. Goals (issue 5): 6 robots
-at least 15 000x real time and 30 % of the floor; 96 robots at least 1 500x. Writes
-`throughput.{csv,md,json}` into `--out` (default benchmarks/results/). The study is
-`agents.studies.throughput`.
+paired by repeat), and the peak resident memory of the size's process. Goals (issue 5): 6 robots at
+least 15 000x real time and 30 % of the floor; 96 robots at least 1 500x. Writes
+`throughput.{csv,md,json}` into a new run folder under runs/ (git ignores it), `--out`, or with
+`--update-reference` benchmarks/results/. The study is `agents.studies.throughput`.
 
     python benchmarks/throughput.py                # ~2 min
     python benchmarks/throughput.py --dt 0.2 --sizes 6 96 --out benchmarks/results/throughput_dt0.2

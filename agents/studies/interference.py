@@ -44,6 +44,9 @@ EXPERIMENTS = ("t_n", "switch", "switch_lone", "cross")
 SWITCHER = 5  # the robot that alternates in the "switch" runs
 MEDIUM_SPEED = 0.25  # the robots of the t(n) and switch runs
 ELASTICITY_BOOT_SEED = 2004  # the Generator of the elasticity's bootstrap
+# Fast and slow robots "share one pace" on a circuit when their task times there differ by at most
+# this fraction of the gap between them alone.
+SHARED_PACE_FRACTION = 0.25
 Row = dict[str, Any]
 
 
@@ -513,7 +516,16 @@ def cross_lines(f: Findings) -> list[str]:
     return lines
 
 
-def cross_notes(f: Findings) -> list[str]:
+def speed_classes_text(s: Settings) -> str:
+    """The cross-interference arena's speed classes, e.g. 'fast 0.3 m/s, slow 0.2 m/s'."""
+    config = tavc_env.make_config(s.preset, **s.overrides)
+    speeds: dict[str, float] = {}
+    for robot in config.robots:
+        speeds.setdefault(robot.speed_class or f"{robot.speed:g} m/s", robot.speed)
+    return ", ".join(f"{label} {speed:g} m/s" for label, speed in speeds.items())
+
+
+def cross_notes(f: Findings, s: Settings) -> list[str]:
     """Plain-language reading of the circuit-0 matrices: who slows whom."""
 
     def t(cls: str, fast: int, slow: int) -> float:
@@ -545,13 +557,28 @@ def cross_notes(f: Findings) -> list[str]:
         if math.isfinite(t("fast", a, b)) and math.isfinite(t("slow", a, b))
     ]
     if same:
-        out.append(
+        # The catch-up story holds only where the classes really share one pace; say so only then.
+        lone_gap = t("slow", 0, 1) - t("fast", 1, 0)
+        widest = max(same)
+        head = (
             f"- Wherever fast and slow robots share circuit 0 (f, s >= 1), their task times "
-            f"differ by at most {max(same):.1f} s: a fast robot that shares a station with a slow "
-            "one ends up at the slow one's pace (it catches up during the 20 s loading and then "
-            "waits behind it in the line, lap after lap), so speed pays only among robots of the "
-            "same class."
+            f"differ by at most {widest:.1f} s (alone, by {lone_gap:.1f} s)"
         )
+        if widest <= SHARED_PACE_FRACTION * lone_gap:
+            config = tavc_env.make_config(s.preset, **s.overrides)
+            loading = f"{config.source_service_s:g} s loading" + (
+                f" at a {config.service_reference_speed:g} m/s robot's pace"
+                if config.service_scales_with_speed
+                else ""
+            )
+            out.append(
+                f"{head}: a fast robot that shares a station with a slow one ends up at the slow "
+                f"one's pace (it catches up during the {loading} and then waits "
+                "behind it in the line, lap after lap), so speed pays only among robots of the "
+                "same class."
+            )
+        else:
+            out.append(f"{head}: sharing a circuit does not put the two classes on one pace.")
     out.append(
         f"- Three of a kind on circuit 0: 3 fast {t('fast', 3, 0):.1f} s per fast task, 3 slow "
         f"{t('slow', 0, 3):.1f} s per slow task."
@@ -568,7 +595,7 @@ def report_body(f: Findings, s: Settings) -> str:
         "'queued s/task': time a robot spends waiting in a station's line per task (its share "
         "of ticks in the queued mode times its mean task time). 'tasks/h': the circuit's "
         "delivery rate n / t(n) (the TAVC model's c); it saturates where the source station "
-        "(20 s loading plus the changeover between robots) is busy all the time.",
+        "(its loading plus the changeover between robots) is busy all the time.",
         "",
         f"## 2. Extra time of a circuit switch ({s.homog_title})",
         "",
@@ -577,14 +604,14 @@ def report_body(f: Findings, s: Settings) -> str:
         "'others a+b': the five non-switching robots, a on circuit 0 and b on circuit 1; the "
         "switcher (robot 5) alternates. 'robots on that circuit' counts the switcher.",
         "",
-        f"## 3. Cross-interference ({s.preset}: fast 0.30 m/s, slow 0.20 m/s)",
+        f"## 3. Cross-interference ({s.preset}: {speed_classes_text(s)})",
         "",
         "Mean task time (s) of a fast and of a slow robot on the high-value circuit 0, with f fast "
         "(rows) and s slow (columns) robots on circuit 0 (the robot itself included) and the rest "
         "on circuit 1.",
         "",
     ]
-    lines += cross_lines(f) + cross_notes(f) + elasticity_lines(f)
+    lines += cross_lines(f) + cross_notes(f, s) + elasticity_lines(f)
     return "\n".join(lines)
 
 

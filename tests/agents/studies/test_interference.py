@@ -108,3 +108,34 @@ def test_quick_run_writes_the_report_and_regenerates_it_from_its_runs(tmp_path: 
     again = study.run(study.Settings(quick=True, workers=1, out=tmp_path))  # every run resumed
     assert (tmp_path / "interference.md").read_text() == report
     assert again.text.startswith("## Verdict") and len(again.written) == 5
+
+
+def _findings_with_cross(fast_shared: float, slow_shared: float) -> study.Findings:
+    """Findings whose circuit-0 cross tables hold only what the notes read: 60 s fast and 75 s slow
+    alone, and the given task times wherever both classes share the circuit."""
+    nan = float("nan")
+    fast = {(1, 0): (60.0, nan, nan, 5), (2, 0): (61.0, nan, nan, 5)}
+    slow = {(0, 1): (75.0, nan, nan, 5), (0, 2): (76.0, nan, nan, 5)}
+    for f in range(1, 4):
+        for s in range(1, 4):
+            fast[(f, s)] = (fast_shared, nan, nan, 5)
+            slow[(f, s)] = (slow_shared, nan, nan, 5)
+    queued = {(0, "fast"): {}, (0, "slow"): {}}
+    return study.Findings(
+        rows=[],
+        t_n={},
+        switch={},
+        pooled={},
+        cross={(0, "fast"): fast, (0, "slow"): slow},
+        queued=queued,  # type: ignore[arg-type]
+    )
+
+
+def test_the_catch_up_story_is_told_only_where_the_classes_share_one_pace() -> None:
+    settings = study.Settings(set=("source_service_s=12",))
+    one_pace = "\n".join(study.cross_notes(_findings_with_cross(75.0, 75.5), settings))
+    assert "differ by at most 0.5 s (alone, by 15.0 s)" in one_pace
+    assert "catches up during the 12 s loading" in one_pace
+    two_paces = "\n".join(study.cross_notes(_findings_with_cross(70.0, 80.0), settings))
+    assert "differ by at most 10.0 s (alone, by 15.0 s)" in two_paces
+    assert "catches up" not in two_paces and "not put the two classes on one pace" in two_paces
