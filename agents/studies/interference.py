@@ -516,6 +516,12 @@ def cross_lines(f: Findings) -> list[str]:
     return lines
 
 
+def arena_label(name: str, s: Settings) -> str:
+    """An arena's name with the run's overrides, e.g. 'dahl2004 + source_service_s=6', as the
+    figure's titles name it."""
+    return " + ".join([name, *(f"{key}={value}" for key, value in sorted(s.overrides.items()))])
+
+
 def speed_classes_text(s: Settings) -> str:
     """The cross-interference arena's speed classes, e.g. 'fast 0.3 m/s, slow 0.2 m/s'."""
     config = tavc_env.make_config(s.preset, **s.overrides)
@@ -705,7 +711,12 @@ def build_report(f: Findings, s: Settings, jobs: Sequence[Job]) -> Report:
             (
                 "interference.png",
                 lambda path: ia.plot_interference(
-                    path, f.rows, f.cross, RATIO_REQUIREMENT, f.preset, f.homog_name
+                    path,
+                    f.rows,
+                    f.cross,
+                    RATIO_REQUIREMENT,
+                    arena_label(s.preset, s),
+                    arena_label(s.homog_title, s),
                 ),
             )
         )

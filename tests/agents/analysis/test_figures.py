@@ -13,9 +13,12 @@ import pytest
 pytest.importorskip("matplotlib")
 import matplotlib.figure
 
-from agents.studies import learning_runs, table1
+from agents.analysis.interference import plot_interference, read_group_rows
+from agents.studies import interference, learning_runs, table1
 from agents.studies.learning_runs import CurveRow, Evaluation, LearningRun
 from tests.helpers import figure_problems
+
+ROOT = Path(__file__).resolve().parents[3]
 
 
 @pytest.fixture
@@ -34,7 +37,8 @@ def saved(monkeypatch: pytest.MonkeyPatch) -> list[Any]:
 def check_axes(ax: Any) -> None:
     """Beyond the hook: bars start exactly at zero, and a legend belongs to its own axes."""
     assert not figure_problems(ax.figure)
-    if ax.containers:  # bars start at zero, so their heights compare as ratios
+    if any(type(c).__name__ == "BarContainer" for c in ax.containers):
+        # bars start at zero, so their heights compare as ratios
         assert ax.get_ylim()[0] == 0.0
     lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
     if len(lines) > 1:
@@ -63,3 +67,19 @@ def test_learning_curve_has_units_legends_and_zero_based_axes(
     for ax in saved[-1].axes:
         check_axes(ax)
         assert ax.get_ylim()[0] == 0.0
+
+
+def test_interference_figure_names_its_arena_and_starts_task_times_at_zero(
+    saved: list[Any], tmp_path: Path
+) -> None:
+    runs = read_group_rows(ROOT / "benchmarks/results/interference_runs.csv")
+    findings = interference.analyse(runs, list(range(5)))
+    plot_interference(
+        tmp_path / "interference.png", findings.rows, findings.cross, 1.15, "arena X", "arena Y"
+    )
+    curve, ratio, fast, slow = saved[-1].axes[:4]
+    for ax in (curve, ratio):
+        check_axes(ax)
+    assert curve.get_ylim()[0] == 0.0 and "arena Y" in curve.get_title()
+    assert "arena X" in fast.get_title() and "arena X" in slow.get_title()
+    assert ratio.get_ylim()[0] <= 1.0 <= ratio.get_ylim()[1]  # the labelled no-slow-down line
