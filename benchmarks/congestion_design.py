@@ -4,9 +4,9 @@ the loading time, station bays) give crowding elasticity e <= 1 while t(4)/t(3) 
 arenas (`dahl2004_congestion`, and `dahl2004_bays` for the regime map) are in the study's
 docstring (`agents.studies.congestion_design`).
 
-Writes `congestion_design.{md,csv,json}` and every run (`runs/`) into `--out` (default
-benchmarks/results/congestion_design/, or congestion_design_bays/ for the second search); a
-rerun resumes.
+Writes `congestion_design.{md,csv,json}` and every run (`runs/`) into a new run folder under
+runs/ (git ignores it), `--out`, or with `--update-reference` benchmarks/results/congestion_design/
+(congestion_design_bays/ for the second search); `--resume RUN_DIR` continues an interrupted run.
 
     python benchmarks/congestion_design.py                 # 15 candidates x 3 seeds x 2 h
     python benchmarks/congestion_design.py --search bays   # the second search: 12 candidates
