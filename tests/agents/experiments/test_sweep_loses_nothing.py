@@ -34,11 +34,16 @@ from agents.experiments.sweep import (
 
 ROOT = Path(__file__).resolve().parents[3]
 
+# The driver stands for a command typed in a terminal, where Ctrl-C raises KeyboardInterrupt. A
+# process started in the background by a non-interactive shell inherits SIGINT ignored (as a CI
+# job may be), so the driver restores Python's own handler rather than depend on its parent.
 DRIVER = """
-import os, sys, time
+import os, signal, sys, time
 from dataclasses import dataclass
 from pathlib import Path
 from agents.experiments.sweep import json_jobs, run_jobs
+
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 @dataclass(frozen=True)
 class Job:
