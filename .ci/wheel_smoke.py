@@ -10,14 +10,14 @@ from pathlib import Path
 
 from pettingzoo.test import parallel_api_test
 
-import agents
+import tavc_agents
 import tavc_env
-from agents.experiments.runner import run_trial
-from agents.learners.tavc import softmax_tavc
-from agents.studies import STUDIES, load
+from tavc_agents.experiments.runner import run_trial
+from tavc_agents.learners.tavc import softmax_tavc
+from tavc_agents.studies import STUDIES, load
 
 source = Path(__file__).resolve().parents[1]
-for module in (tavc_env, agents):
+for module in (tavc_env, tavc_agents):
     where = Path(module.__file__ or "").resolve()
     if source in where.parents:
         sys.exit(f"{module.__name__} was imported from the source tree ({where}), not the wheel")

@@ -6,7 +6,7 @@ measured. Reports delivered value (also as a fraction of the model optimum), the
 the allocation held, switches per robot per hour and time to settle, with 95 % intervals. Writes
 allocators.{md,csv,json}, trials.csv and allocators.png into benchmarks/results/allocators/ (or
 --out); trials are kept in cache/ so `--resume RUN_DIR` continues an interrupted run. Needs the models of the tavc_model study.
-The study is agents.studies.allocators.
+The study is tavc_agents.studies.allocators.
 
     python benchmarks/allocators.py
     python benchmarks/allocators.py --quick       # a smoke run
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import allocators as study
-from agents.studies.common import run_study
+from tavc_agents.studies import allocators as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,6 +1,6 @@
 """How fast the `tavc` command answers: `tavc --help` against `python -c pass` and the package's
 own import, each a whole command timed `--repeats` times in the same run (a ratio against the
-baseline, not a timed test). The study is agents.studies.cli_startup.
+baseline, not a timed test). The study is tavc_agents.studies.cli_startup.
 
     python benchmarks/cli_startup.py
 """
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import cli_startup as study
-from agents.studies.common import run_study
+from tavc_agents.studies import cli_startup as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

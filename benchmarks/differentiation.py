@@ -4,7 +4,7 @@ Softmax TAVC at several temperatures, epsilon-greedy TAVC and random allocation 
 regimes stations, competence and light_stations; reports, with 95 % confidence intervals over
 trials, the time fast and slow robots spend on the high-value circuit, their difference (the
 paper's effect: > 0) and performance against random. Trials are saved as they finish and reused
-by a rerun. The study is agents.studies.differentiation.
+by a rerun. The study is tavc_agents.studies.differentiation.
 
     python benchmarks/differentiation.py                       # all regimes, default temperatures
     python benchmarks/differentiation.py --regimes stations --temperatures 0.002,0.005,0.02
@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import differentiation as study
-from agents.studies.common import run_study
+from tavc_agents.studies import differentiation as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

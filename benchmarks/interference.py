@@ -17,11 +17,11 @@ alternates).
 3. **Cross-interference** (preset `dahl2004`: robots 0-2 fast 0.30 m/s, 3-5 slow 0.20 m/s): f fast
    and s slow robots on circuit 0 (f, s = 0..3), the rest on circuit 1; the mean task time of a fast
    and of a slow robot on circuit 0 (and, from the same runs, on circuit 1 with 3-f fast, 3-s slow).
-4. **Elasticity** e (`agents.analysis.elasticity`), from the circuit-0 tables T_c(f, s) of 3.:
+4. **Elasticity** e (`tavc_agents.analysis.elasticity`), from the circuit-0 tables T_c(f, s) of 3.:
    mean over f, s in 1..3 of ln(T_fast(f, s) / T_fast(1, 0)) divided by that of
    ln(T_slow(f, s) / T_slow(0, 1)); 1: crowding costs every robot the same fraction of its time,
    > 1: fast robots lose more. Its 95% interval is a percentile bootstrap resampling seeds.
-   `agents.studies.elasticity.measure_elasticity` measures e alone, for any arena.
+   `tavc_agents.studies.elasticity.measure_elasticity` measures e alone, for any arena.
 
 `--preset` (default dahl2004; also dahl2004_competence, dahl2004_light_stations,
 dahl2004_congestion, dahl2004_bays) is the arena of the cross runs; t(n) and the switch runs use
@@ -38,7 +38,7 @@ Statistics: each run (seed) gives one number per quantity: the mean over its cou
 (task-weighted over the robots of that group). Reported: mean over seeds with a Student-t 95%
 interval (n_seeds - 1 df). Ratios t(n+1)/t(n) are ratios of the seed means of two separate sets of
 runs; the 95% interval is a delta-method interval on the log scale with Welch-Satterthwaite degrees
-of freedom (`agents.analysis.stats.ratio_ci`); a percentile bootstrap over seeds is given as a
+of freedom (`tavc_agents.analysis.stats.ratio_ci`); a percentile bootstrap over seeds is given as a
 cross-check (too narrow with few seeds). The switch cost is paired within a run: per seed,
 mean(switch tasks into c) - mean(own tasks on c), absolute and relative to the own-task mean; mean
 over seeds with a Student-t interval.
@@ -47,7 +47,7 @@ Writes `interference.{csv,md,json}`, `interference_runs.csv` (one row per run an
 `interference.png` (if matplotlib is installed) into a new run folder under runs/ (git ignores it),
 `--out`, or with `--update-reference` benchmarks/results/. Runs go through the package's sweep
 runner (`--workers`, `--backend local|ray`) and are kept in the output folder's cache/interference/
-as they finish, so an interrupted benchmark resumes. The study is `agents.studies.interference`.
+as they finish, so an interrupted benchmark resumes. The study is `tavc_agents.studies.interference`.
 
     python benchmarks/interference.py             # 130 runs: 5 seeds x 3 simulated h, ~3-5 min
     python benchmarks/interference.py --quick
@@ -58,8 +58,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import interference as study
-from agents.studies.common import run_study
+from tavc_agents.studies import interference as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

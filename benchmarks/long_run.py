@@ -15,7 +15,7 @@ Writes `long_run.{csv,md,json}` (per robot summary) and `long_run_tasks_seed<S>.
 completion, written as the run goes) into a new run folder under runs/ (git ignores it), `--out`,
 or with `--update-reference` benchmarks/results/. Seeds run through the package's sweep runner
 (`--workers`, `--backend local|ray`) and are kept in the output folder's cache/long_run/, so
-`--resume RUN_DIR` continues an interrupted run. The study is `agents.studies.long_run`.
+`--resume RUN_DIR` continues an interrupted run. The study is `tavc_agents.studies.long_run`.
 
     python benchmarks/long_run.py                 # 15 simulated hours, seeds 0-3 (~1-2 min wall)
     python benchmarks/long_run.py --quick         # smoke run
@@ -25,8 +25,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import long_run as study
-from agents.studies.common import run_study
+from tavc_agents.studies import long_run as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -4,7 +4,7 @@
     pyinstrument -i 0.0002 benchmarks/profile_env.py
     pyinstrument -i 0.0002 benchmarks/profile_env.py --robots 96 --hours 0.25
 
-The run is the one `benchmarks/throughput.py` times (`agents.studies.throughput.profile_run`).
+The run is the one `benchmarks/throughput.py` times (`tavc_agents.studies.throughput.profile_run`).
 What the profiles taught (before / after issue 5, in `results/profile/`): the physics step was a
 small part of a tick; reading each body's position and setting each body's velocity through
 pymunk's Python attributes cost more than the step itself, followed by the controller call's
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import throughput as study
-from agents.studies.common import parse_settings
+from tavc_agents.studies import throughput as study
+from tavc_agents.studies.common import parse_settings
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -9,7 +9,7 @@ cell and 100 twin trials per cell. Writes `regime_map.{md,csv,json,png}` and `pr
 a new run folder under runs/ (git ignores it), `--out`, or with `--update-reference`
 benchmarks/results/regime_map/; every trial is kept as a compact record under the output folder's
 trials/ as it finishes, so `--resume RUN_DIR` continues an interrupted run. The study is
-`agents.studies.regime_map`.
+`tavc_agents.studies.regime_map`.
 
     python benchmarks/regime_map.py --workers 2     # about 3520 physics trials: many hours
     python benchmarks/regime_map.py --quick         # smoke run (a minute or two)
@@ -19,8 +19,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import regime_map as study
-from agents.studies.common import run_study
+from tavc_agents.studies import regime_map as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,7 +1,7 @@
 """Re-run saved trials from their stored settings and check that they come out bit for bit the same.
 
 Compares everything a trial recorded (timeline, deliveries, Q snapshots, counters; not the
-wall-clock time). Exit status 1 if any trial differs. The study is agents.studies.reproduce.
+wall-clock time). Exit status 1 if any trial differs. The study is tavc_agents.studies.reproduce.
 
     python benchmarks/reproduce_trials.py benchmarks/results/table1_dahl2004_scaled/trials/*.json
     python benchmarks/reproduce_trials.py --sample 4 --seed 1 'benchmarks/results/*/trials/*.json'
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import reproduce as study
-from agents.studies.common import parse_settings
+from tavc_agents.studies import reproduce as study
+from tavc_agents.studies.common import parse_settings
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -6,7 +6,7 @@ model-optimal allocation, which then runs, with its neighbours and the next-best
 static allocation in the full arena to check the prediction. Writes model.json (read by
 allocators.py and vacancy_chain.py), slot_values.{md,csv,json}, group_runs.csv and
 check.{md,csv,json} into benchmarks/results/tavc_model/<preset>/ (the committed reference; a run writes into a new runs/ folder unless --update-reference or --out); runs are kept in
-cache/ so `--resume RUN_DIR` continues an interrupted run. The study is agents.studies.tavc_model.
+cache/ so `--resume RUN_DIR` continues an interrupted run. The study is tavc_agents.studies.tavc_model.
 
     python benchmarks/tavc_model.py                                        # dahl2004
     python benchmarks/tavc_model.py --preset three_circuits_three_classes --seeds 2
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import tavc_model as study
-from agents.studies.common import run_study
+from tavc_agents.studies import tavc_model as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

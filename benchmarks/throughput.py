@@ -17,7 +17,7 @@ hits them alike; reported are the means, the best repeat, the ratio env / floor 
 paired by repeat), and the peak resident memory of the size's process. Goals (issue 5): 6 robots at
 least 15 000x real time and 30 % of the floor; 96 robots at least 1 500x. Writes
 `throughput.{csv,md,json}` into a new run folder under runs/ (git ignores it), `--out`, or with
-`--update-reference` benchmarks/results/. The study is `agents.studies.throughput`.
+`--update-reference` benchmarks/results/. The study is `tavc_agents.studies.throughput`.
 
     python benchmarks/throughput.py                # ~2 min
     python benchmarks/throughput.py --dt 0.2 --sizes 6 96 --out benchmarks/results/throughput_dt0.2
@@ -28,8 +28,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import throughput as study
-from agents.studies.common import run_study
+from tavc_agents.studies import throughput as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,7 +1,7 @@
 """The model twin audited under random allocation: are its tables' own-circuit cells and its switch
 cost right where crowds change at every decision, and how much of its disagreement with the
 physics on random allocation does the switch cost explain? The design is in the study's docstring
-(`agents.studies.twin_audit`).
+(`tavc_agents.studies.twin_audit`).
 
 Writes `twin_audit.{md,csv,json,png}`, every run (`runs/`) and the arenas' tables (`twin_tables/`)
 into a new run folder (`--update-reference`: benchmarks/results/twin_audit/); `--resume RUN_DIR`
@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from agents.studies import twin_audit as study
-from agents.studies.common import run_study
+from tavc_agents.studies import twin_audit as study
+from tavc_agents.studies.common import run_study
 
 
 def main(argv: Sequence[str] | None = None) -> int:

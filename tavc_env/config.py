@@ -510,7 +510,7 @@ ARENA_REGIMES: Mapping[str, Mapping[str, Any]] = {
 }
 
 # The congestion arena (`dahl2004_congestion`), chosen by the design search of
-# `agents.studies.congestion_design` from physics measurements alone (committed before any learner
+# `tavc_agents.studies.congestion_design` from physics measurements alone (committed before any learner
 # ran on it): a clearance-governed speed over 2.56 m of clearance, read by a 3 m range sensor, and
 # 40 s loading. Its crowding elasticity is the lowest the search found (about 1.17, not <= 1).
 CONGESTION: Mapping[str, Any] = {
@@ -519,7 +519,7 @@ CONGESTION: Mapping[str, Any] = {
     "source_service_s": 40.0,
 }
 
-# The second design search's lowest-e arena (`agents.studies.congestion_design --search bays`),
+# The second design search's lowest-e arena (`tavc_agents.studies.congestion_design --search bays`),
 # which by that search's rule joins the regime map: the congestion arena with three bays per
 # station. About e = 1.10, still above 1; 3 + 3 stays the homogeneous equilibrium.
 BAYS: Mapping[str, Any] = {**CONGESTION, "station_bays": 3}

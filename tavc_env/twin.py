@@ -36,7 +36,7 @@ no physical task can (every real task takes at least its travel and service time
 * A task's time is drawn once, at its decision, from the robots committed to its circuit then;
   robots joining or leaving that circuit during the task do not change it.
 * Only robots on the same circuit interfere; traffic from other circuits enters only as it was
-  present in the runs that measured the tables (`agents.experiments.twin_tables`).
+  present in the runs that measured the tables (`tavc_agents.experiments.twin_tables`).
 * Counts are per speed-class label (`Robot.speed_class`); robots of one class are alike.
 * One switch cost for every class and circuit; a repaired robot's next task counts as starting at
   the circuit of its abandoned task.

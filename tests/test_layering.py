@@ -30,17 +30,17 @@ LAYERS: list[tuple[int, str]] = [
     (3, "tavc_env.v0"),
     (3, "tavc_env"),  # the package's __init__: the public API, re-exporting the env
     (4, "tavc_env.adapters"),  # views of the env for learning libraries
-    (4, "agents.policy"),
-    (4, "agents.driver"),
-    (4, "agents.model"),
-    (5, "agents.learners"),
-    (5, "agents.allocators"),
-    (6, "agents.experiments"),
-    (6, "agents.envs"),
-    (7, "agents.analysis"),
-    (8, "agents.studies"),
-    (9, "agents.cli"),
-    (9, "agents"),  # the package's __init__ (a docstring)
+    (4, "tavc_agents.policy"),
+    (4, "tavc_agents.driver"),
+    (4, "tavc_agents.model"),
+    (5, "tavc_agents.learners"),
+    (5, "tavc_agents.allocators"),
+    (6, "tavc_agents.experiments"),
+    (6, "tavc_agents.envs"),
+    (7, "tavc_agents.analysis"),
+    (8, "tavc_agents.studies"),
+    (9, "tavc_agents.cli"),
+    (9, "tavc_agents"),  # the package's __init__ (a docstring)
     (10, "benchmarks"),
 ]
 ENGINE_ONLY = ("tavc_env.engine",)  # physics and task rules: must not know gymnasium or PettingZoo
@@ -48,13 +48,15 @@ ENGINE_ONLY = ("tavc_env.engine",)  # physics and task rules: must not know gymn
 
 def module_name(path: Path) -> str:
     parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[0] == "agents":  # a source folder: its package is `tavc_agents`
+        parts.pop(0)
     if parts[-1] == "__init__":
         parts.pop()
     return ".".join(parts)
 
 
 def source_files() -> dict[str, Path]:
-    files = [*ROOT.glob("tavc_env/**/*.py"), *ROOT.glob("agents/**/*.py")]
+    files = [*ROOT.glob("tavc_env/**/*.py"), *ROOT.glob("agents/tavc_agents/**/*.py")]
     files += ROOT.glob("benchmarks/*.py")
     return {module_name(p): p for p in sorted(files)}
 
@@ -169,6 +171,8 @@ def test_the_layering_test_sees_function_level_imports(tmp_path: Path) -> None:
     """The checker itself: an import inside a function is found (a test that could not fail
     would prove nothing)."""
     path = tmp_path / "probe.py"
-    path.write_text("def f():\n    from agents.studies import common\n    import tavc_env.env\n")
+    path.write_text(
+        "def f():\n    from tavc_agents.studies import common\n    import tavc_env.env\n"
+    )
     found = imported_modules(path, "probe")
-    assert {"agents.studies", "agents.studies.common", "tavc_env.env"} <= found
+    assert {"tavc_agents.studies", "tavc_agents.studies.common", "tavc_env.env"} <= found

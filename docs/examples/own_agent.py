@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from agents.experiments.runner import run_trial
-from agents.learners.tavc import softmax_tavc
-from agents.policy import allowed_actions
+from tavc_agents.experiments.runner import run_trial
+from tavc_agents.learners.tavc import softmax_tavc
+from tavc_agents.policy import allowed_actions
 from tavc_env import metrics
 
 

@@ -10,7 +10,7 @@ policy is shared by all robots; RLlib's own action-masking module reads the mask
     python docs/examples/rllib_ppo.py --preset dahl2004 --out benchmarks/results/marl/rllib_ppo_dahl2004
 
 After every `--eval-every` iterations the policy network is exported
-(`agents.learners.network.Mlp`) and run greedily on physics; `--out` gets the learning curve (CSV +
+(`tavc_agents.learners.network.Mlp`) and run greedily on physics; `--out` gets the learning curve (CSV +
 PNG), the final evaluation on fresh seeds and `network.npz`.
 """
 
@@ -27,8 +27,8 @@ from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 from ray.rllib.examples.rl_modules.classes.action_masking_rlm import ActionMaskingTorchRLModule
 from ray.tune.registry import register_env
 
-from agents.learners.network import Mlp
-from agents.studies.learning_runs import (
+from tavc_agents.learners.network import Mlp
+from tavc_agents.studies.learning_runs import (
     DEFAULT_OPTIONS,
     REWARD_SCALE,
     LearningRun,

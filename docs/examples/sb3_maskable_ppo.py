@@ -9,7 +9,7 @@ the robot's index, so the shared network can tell robots apart.
     python docs/examples/sb3_maskable_ppo.py --updates 2 --eval-every 1 --eval-hours 0.2 --out /tmp/sb3
     python docs/examples/sb3_maskable_ppo.py --preset dahl2004 --out benchmarks/results/marl/sb3_maskable_ppo_dahl2004
 
-After every `--eval-every` updates the network is exported (`agents.learners.network.Mlp`) and run
+After every `--eval-every` updates the network is exported (`tavc_agents.learners.network.Mlp`) and run
 greedily on physics; `--out` gets the learning curve (CSV + PNG), the final evaluation on fresh
 seeds and `network.npz` (the allocator `network` in the allocator study).
 """
@@ -20,8 +20,8 @@ import torch
 import tyro
 from sb3_contrib import MaskablePPO
 
-from agents.learners.network import Mlp
-from agents.studies.learning_runs import (
+from tavc_agents.learners.network import Mlp
+from tavc_agents.studies.learning_runs import (
     DEFAULT_OPTIONS,
     REWARD_SCALE,
     LearningRun,

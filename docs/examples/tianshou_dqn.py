@@ -1,6 +1,6 @@
 """A neural agent learns to prefer the high-value circuit, with Tianshou's DQN.
 
-Robot 0 of `dahl2004` is the learner (`agents.envs.single_robot.SingleRobotEnv`: one step is one of its
+Robot 0 of `dahl2004` is the learner (`tavc_agents.envs.single_robot.SingleRobotEnv`: one step is one of its
 tasks, the reward is the arena's `w / t`); the five other robots choose at random. Before training
 the greedy network's choices are arbitrary; after training it serves the high-value circuit
 (value 2200 against 2000; the crowding is the same on both under random co-workers).
@@ -27,8 +27,8 @@ from tianshou.env import DummyVectorEnv
 from tianshou.trainer import OffPolicyTrainerParams
 from tianshou.utils.net.common import Net
 
-from agents.allocators.baselines import RandomAllocator
-from agents.envs.single_robot import SingleRobotEnv
+from tavc_agents.allocators.baselines import RandomAllocator
+from tavc_agents.envs.single_robot import SingleRobotEnv
 
 # Rewards are w / t with t in milliseconds (about 0.02); scaled here so the network sees O(1).
 REWARD_SCALE = 100.0

@@ -9,7 +9,7 @@ observation); the critic is centralised (it sees every robot's observation), whi
     python docs/examples/torchrl_mappo.py --updates 2 --batch 200 --eval-every 1 --eval-hours 0.2 --out /tmp/mappo
     python docs/examples/torchrl_mappo.py --preset dahl2004 --out benchmarks/results/marl/torchrl_mappo_dahl2004
 
-After every `--eval-every` batches the actor is exported (`agents.learners.network.Mlp`) and run
+After every `--eval-every` batches the actor is exported (`tavc_agents.learners.network.Mlp`) and run
 greedily on physics; `--out` gets the learning curve (CSV + PNG), the final evaluation on fresh
 seeds and `network.npz`.
 """
@@ -28,8 +28,8 @@ from torchrl.modules import MaskedCategorical, MultiAgentMLP, ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss, ValueEstimators
 
 import tavc_env
-from agents.learners.network import Mlp
-from agents.studies.learning_runs import (
+from tavc_agents.learners.network import Mlp
+from tavc_agents.studies.learning_runs import (
     DEFAULT_OPTIONS,
     REWARD_SCALE,
     LearningRun,

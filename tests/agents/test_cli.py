@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from agents import studies
-from agents.cli import main
-from agents.experiments.runner import TrialResult
+from tavc_agents import studies
+from tavc_agents.cli import main
+from tavc_agents.experiments.runner import TrialResult
 
 TINY = ["--convergence-h", "0.02", "--measured-h", "0.05"]
 
@@ -33,9 +33,12 @@ def run(argv: list[str]) -> tuple[int, str, str]:
 
 def test_console_script_is_installed_and_help_lists_every_command() -> None:
     scripts = importlib.metadata.entry_points(group="console_scripts")
-    assert any(e.name == "tavc" and e.value == "agents.cli:main" for e in scripts)
+    assert any(e.name == "tavc" and e.value == "tavc_agents.cli:main" for e in scripts)
     done = subprocess.run(
-        [sys.executable, "-m", "agents.cli", "--help"], capture_output=True, text=True, check=True
+        [sys.executable, "-m", "tavc_agents.cli", "--help"],
+        capture_output=True,
+        text=True,
+        check=True,
     )
     for command in ("trial", "record", "reproduce", "bench"):
         assert command in done.stdout

@@ -1,4 +1,4 @@
-"""The TAVC model (`agents.model`) on synthetic data with known answers: Equation 1 slot values, the
+"""The TAVC model (`tavc_agents.model`) on synthetic data with known answers: Equation 1 slot values, the
 team's value rate and the paper's performance measure by hand, the exhaustive optimum against hand
 reasoning and against brute force over robot-level assignments, neighbours, storage, bad input,
 speed classes, robot-level realisations, the model built from measured runs, and one small real
@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 import tavc_env
-from agents.experiments.estimation import estimate_model, group_specs, measured_rate
-from agents.model import (
+from tavc_agents.experiments.estimation import estimate_model, group_specs, measured_rate
+from tavc_agents.model import (
     Allocation,
     CompletionModel,
     SpeedClasses,

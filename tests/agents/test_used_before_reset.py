@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agents.allocators.baselines import RandomAllocator
-from agents.allocators.threshold import ResponseThresholdAllocator
-from agents.learners.tavc import epsilon_tavc, softmax_tavc
+from tavc_agents.allocators.baselines import RandomAllocator
+from tavc_agents.allocators.threshold import ResponseThresholdAllocator
+from tavc_agents.learners.tavc import epsilon_tavc, softmax_tavc
 from tavc_env import make_config
 from tavc_env.engine.simulation import Simulation
 

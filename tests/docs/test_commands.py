@@ -22,9 +22,9 @@ from pathlib import Path
 
 import pytest
 
-from agents import studies
-from agents.studies.common import parse_settings
-from agents.studies.learning_runs import RunOptions
+from tavc_agents import studies
+from tavc_agents.studies.common import parse_settings
+from tavc_agents.studies.learning_runs import RunOptions
 from tests.docs.markdown import ROOT, Block, documentation_files, fenced_blocks
 
 SKIPPED = ("pip", "mkdocs")  # (and `python -m pytest`)
@@ -88,7 +88,7 @@ def test_documented_commands_work_as_written(block: Block, tmp_path: Path) -> No
                 assert script.is_file(), f"{block.where}: {script} does not exist"
             continue
         assert words[0] == "tavc", f"{block.where}: no rule for documented command {words}"
-        command = [sys.executable, "-m", "agents.cli", *words[1:]]
+        command = [sys.executable, "-m", "tavc_agents.cli", *words[1:]]
         done = subprocess.run(
             command, cwd=tmp_path, capture_output=True, text=True, timeout=300, check=False
         )

@@ -11,7 +11,7 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from agents.policy import Policy
+from tavc_agents.policy import Policy
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
 

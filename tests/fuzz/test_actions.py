@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import tavc_env
-from agents.envs.single_robot import SingleRobotEnv
+from tavc_agents.envs.single_robot import SingleRobotEnv
 from tavc_env.config import ArenaConfig
 from tavc_env.env import _arena_digest
 from tests.fuzz.strategies import (

@@ -20,9 +20,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from agents.experiments.files import CorruptFileError
-from agents.experiments.runner import TrialResult
-from agents.experiments.sweep import SweepError, TrialSpec, run_sweep
+from tavc_agents.experiments.files import CorruptFileError
+from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.sweep import SweepError, TrialSpec, run_sweep
 from tests.fuzz.strategies import fuzz_settings
 
 SPECS = [
@@ -211,7 +211,7 @@ def test_an_interrupted_sweep_leaves_only_whole_trial_files(
             real_replace(src, dst)
 
         with (
-            mock.patch("agents.experiments.files.os.replace", replace),
+            mock.patch("tavc_agents.experiments.files.os.replace", replace),
             pytest.raises((KeyboardInterrupt, SweepError)),
         ):
             run_sweep(SPECS, folder, workers=1, on_done=on_done)

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import tavc_env
-from agents.envs.single_robot import SingleRobotEnv
+from tavc_agents.envs.single_robot import SingleRobotEnv
 
 COLLECT_DURING_SPACEFREE = textwrap.dedent(
     """

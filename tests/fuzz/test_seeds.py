@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given
 
 import tavc_env
-from agents.envs.single_robot import SingleRobotEnv
+from tavc_agents.envs.single_robot import SingleRobotEnv
 from tavc_env.env import _arena_digest
 from tests.fuzz.strategies import SEEDS, fuzz_settings, is_valid_seed
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import tavc_env
-from agents.learners.network import Mlp
-from agents.studies.learning_runs import RunOptions, write_learning_run
+from tavc_agents.learners.network import Mlp
+from tavc_agents.studies.learning_runs import RunOptions, write_learning_run
 from tests.docs.test_examples import load as example
 
 pytestmark = pytest.mark.marl

@@ -29,12 +29,17 @@ import numpy as np
 import pytest
 
 import tavc_env
-from agents.allocators.market import AuctionAllocator, auction
-from agents.allocators.teams import GreedyAllocator, StaticAllocator, TeamAllocator, prefer_current
-from agents.allocators.threshold import ResponseThresholdAllocator
-from agents.experiments.runner import Event, TrialResult, run_trial
-from agents.model import Allocation, CompletionModel
-from agents.policy import Policy, Team
+from tavc_agents.allocators.market import AuctionAllocator, auction
+from tavc_agents.allocators.teams import (
+    GreedyAllocator,
+    StaticAllocator,
+    TeamAllocator,
+    prefer_current,
+)
+from tavc_agents.allocators.threshold import ResponseThresholdAllocator
+from tavc_agents.experiments.runner import Event, TrialResult, run_trial
+from tavc_agents.model import Allocation, CompletionModel
+from tavc_agents.policy import Policy, Team
 from tavc_env import PHASES, completed_task_s
 
 T_FAST, T_SLOW = 60.0, 90.0

@@ -1,4 +1,4 @@
-"""The allocation-timeline measures of `agents.analysis.allocation`, on hand-made trials whose
+"""The allocation-timeline measures of `tavc_agents.analysis.allocation`, on hand-made trials whose
 answers can be worked out on paper: circuits at a moment, switches, delivered value, the model
 value of the held allocation, settle time and the vacancy chain after a breakdown."""
 
@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agents.analysis import allocation
-from agents.experiments.runner import TrialResult
-from agents.model import CompletionModel, SpeedClasses
+from tavc_agents.analysis import allocation
+from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.model import CompletionModel, SpeedClasses
 from tavc_env import Robot
 
 CLASSES = SpeedClasses(

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 import tavc_env
-from agents.analysis import elasticity as ea
-from agents.analysis import interference as ia
-from agents.experiments import elasticity as ee
-from agents.studies import interference as study
-from agents.studies.elasticity import elasticity_jobs, measure_elasticity
+from tavc_agents.analysis import elasticity as ea
+from tavc_agents.analysis import interference as ia
+from tavc_agents.experiments import elasticity as ee
+from tavc_agents.studies import interference as study
+from tavc_agents.studies.elasticity import elasticity_jobs, measure_elasticity
 from tavc_env.config import lane_circuits
 
 ROOT = Path(__file__).resolve().parents[3]

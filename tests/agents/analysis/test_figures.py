@@ -13,9 +13,9 @@ import pytest
 pytest.importorskip("matplotlib")
 import matplotlib.figure
 
-from agents.analysis.interference import plot_interference, read_group_rows
-from agents.studies import interference, learning_runs, table1
-from agents.studies.learning_runs import CurveRow, Evaluation, LearningRun
+from tavc_agents.analysis.interference import plot_interference, read_group_rows
+from tavc_agents.studies import interference, learning_runs, table1
+from tavc_agents.studies.learning_runs import CurveRow, Evaluation, LearningRun
 from tests.helpers import figure_problems
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -8,8 +8,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agents.analysis import interference as ia
-from agents.experiments.measurement import CountedTask, FixedAllocation, FixedRun
+from tavc_agents.analysis import interference as ia
+from tavc_agents.experiments.measurement import CountedTask, FixedAllocation, FixedRun
 from tavc_env.engine.tasks import Mode
 
 

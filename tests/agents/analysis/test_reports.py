@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.analysis.reports import (
+from tavc_agents.analysis.reports import (
     CsvAppender,
     Report,
     fmt,
@@ -19,7 +19,7 @@ from agents.analysis.reports import (
     metadata_markdown,
     write_results,
 )
-from agents.experiments.provenance import run_metadata
+from tavc_agents.experiments.provenance import run_metadata
 
 
 def test_write_results_writes_csv_markdown_and_json(tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from agents.analysis.stats import bootstrap_ratio_ci, mean_ci, mean_sd, ratio_ci, welch
+from tavc_agents.analysis.stats import bootstrap_ratio_ci, mean_ci, mean_sd, ratio_ci, welch
 
 
 def test_mean_ci_is_scipys_t_interval() -> None:

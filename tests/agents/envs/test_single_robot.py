@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from agents.allocators.baselines import FixedAllocator, RandomAllocator
-from agents.envs.single_robot import SingleRobotEnv
+from tavc_agents.allocators.baselines import FixedAllocator, RandomAllocator
+from tavc_agents.envs.single_robot import SingleRobotEnv
 from tavc_env import completed_task_s
 
 

@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agents.allocators.baselines import FixedAllocator
-from agents.envs.single_robot import SingleRobotEnv
+from tavc_agents.allocators.baselines import FixedAllocator
+from tavc_agents.envs.single_robot import SingleRobotEnv
 
 
 def make() -> SingleRobotEnv:

@@ -1,4 +1,4 @@
-"""Scheduled events of a trial (`agents.experiments.runner.Event`) are validated in full before
+"""Scheduled events of a trial (`tavc_agents.experiments.runner.Event`) are validated in full before
 the trial starts, not when they fire (issue 12, item 10: a bad priority change used to raise hours
 into a run, after all that simulation was done). Every refusal is a ValueError naming the event,
 the bad value and what is allowed.
@@ -11,8 +11,8 @@ from typing import Any
 
 import pytest
 
-from agents.allocators.baselines import RandomAllocator
-from agents.experiments.runner import Event, run_trial
+from tavc_agents.allocators.baselines import RandomAllocator
+from tavc_agents.experiments.runner import Event, run_trial
 
 
 def run(events: Any, measured_s: float = 120.0, **env_kwargs: Any) -> list[float]:

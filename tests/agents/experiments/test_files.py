@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from agents.analysis.reports import write_csv
-from agents.experiments.files import (
+from tavc_agents.analysis.reports import write_csv
+from tavc_agents.experiments.files import (
     CorruptFileError,
     atomic_path,
     read_record,

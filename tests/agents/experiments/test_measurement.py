@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import tavc_env
-from agents.experiments.measurement import (
+from tavc_agents.experiments.measurement import (
     FixedAllocation,
     ModeTicks,
     SpacingMonitor,

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from agents.experiments.provenance import (
+from tavc_agents.experiments.provenance import (
     load_provenance,
     run_metadata,
     run_recorded,
     save_provenance,
 )
-from agents.experiments.sweep import TRIALS, TrialSpec
+from tavc_agents.experiments.sweep import TRIALS, TrialSpec
 
 
 def test_run_metadata_records_machine_versions_and_command() -> None:

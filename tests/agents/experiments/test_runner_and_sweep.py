@@ -1,4 +1,4 @@
-"""The trial runner and the sweep runner (agents.experiments.runner, agents.experiments.sweep): determinism, the JSON round
+"""The trial runner and the sweep runner (tavc_agents.experiments.runner, tavc_agents.experiments.sweep): determinism, the JSON round
 trip, the recorded timeline against the deliveries, Q snapshots and learner statistics, what a
 policy is shown (a spy policy records every call), bad input, and the sweep's resume and parallel
 equality."""
@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from agents.allocators.baselines import RandomAllocator
-from agents.experiments.runner import TrialResult, run_trial
-from agents.experiments.sweep import TrialSpec, result_path, run_sweep
-from agents.learners.tavc import TavcLearner, softmax_tavc
+from tavc_agents.allocators.baselines import RandomAllocator
+from tavc_agents.experiments.runner import TrialResult, run_trial
+from tavc_agents.experiments.sweep import TrialSpec, result_path, run_sweep
+from tavc_agents.learners.tavc import TavcLearner, softmax_tavc
 
 AGENTS = [f"robot_{i}" for i in range(6)]
 HOUR = {"convergence_s": 2400.0, "measured_s": 1200.0}  # one simulated hour, about 1 s of wall time

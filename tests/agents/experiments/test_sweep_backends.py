@@ -20,9 +20,9 @@ from typing import Any
 
 import pytest
 
-from agents.experiments.files import write_manifest
-from agents.experiments.runner import TrialResult
-from agents.experiments.sweep import TrialSpec, json_jobs, result_path, run_jobs, run_sweep
+from tavc_agents.experiments.files import write_manifest
+from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.sweep import TrialSpec, json_jobs, result_path, run_jobs, run_sweep
 
 TINY = {"convergence_s": 120.0, "measured_s": 240.0}
 ENV = {"preset": "dahl2004"}
@@ -48,7 +48,7 @@ def uninterrupted(tmp_path_factory: pytest.TempPathFactory) -> dict[str, TrialRe
 
 SWEEP_SCRIPT = """
 import sys
-from agents.experiments.sweep import TrialSpec, run_sweep
+from tavc_agents.experiments.sweep import TrialSpec, run_sweep
 specs = [TrialSpec(key=f"softmax_s{s}", allocator="softmax_tavc", seed=s,
                    env_kwargs={"preset": "dahl2004"}, convergence_s=120.0, measured_s=240.0)
          for s in range(4)]

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import pytest
 
-from agents.experiments.files import CorruptFileError, read_record
-from agents.experiments.runner import Event, TrialResult
-from agents.experiments.sweep import (
+from tavc_agents.experiments.files import CorruptFileError, read_record
+from tavc_agents.experiments.runner import Event, TrialResult
+from tavc_agents.experiments.sweep import (
     SweepError,
     TrialSpec,
     json_jobs,
@@ -41,7 +41,7 @@ DRIVER = """
 import os, signal, sys, time
 from dataclasses import dataclass
 from pathlib import Path
-from agents.experiments.sweep import json_jobs, run_jobs
+from tavc_agents.experiments.sweep import json_jobs, run_jobs
 
 signal.signal(signal.SIGINT, signal.default_int_handler)
 
@@ -196,7 +196,7 @@ def test_a_failing_job_does_not_lose_the_others(tmp_path: Path, workers: int) ->
         run_jobs(jobs, json_jobs(flaky, lambda j: j.key), tmp_path, workers=workers)
     message = str(caught.value)
     assert "1 run(s) failed" in message and "j1 (seed -): RuntimeError: job j1 broke" in message
-    assert "python -m agents.experiments.sweep" in message and "j1.failed.json" in message
+    assert "python -m tavc_agents.experiments.sweep" in message and "j1.failed.json" in message
     assert sorted(p.stem for p in tmp_path.glob("j*.json") if ".failed" not in p.name) == [
         "j0",
         "j2",

@@ -12,11 +12,11 @@ import pytest
 from scipy import stats
 
 import tavc_env
-from agents.analysis.measures import measure
-from agents.experiments.registry import make_allocator
-from agents.experiments.runner import run_trial
-from agents.experiments.twin_batch import Learner, run_batch
-from agents.experiments.twin_tables import random_allocation_run
+from tavc_agents.analysis.measures import measure
+from tavc_agents.experiments.registry import make_allocator
+from tavc_agents.experiments.runner import run_trial
+from tavc_agents.experiments.twin_batch import Learner, run_batch
+from tavc_agents.experiments.twin_tables import random_allocation_run
 from tavc_env.config import Breakdown
 from tavc_env.twin import InterferenceTables
 

@@ -1,5 +1,5 @@
 """Trials on the model twin (`run_trial(env_factory=...)`) and the twin's tables measured in the
-physics (`agents.experiments.twin_tables`): the default path is untouched, TAVC learners run 20
+physics (`tavc_agents.experiments.twin_tables`): the default path is untouched, TAVC learners run 20
 simulated hours on the twin in well under a second, and a tiny build from physics works."""
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ from typing import Any
 import pytest
 
 import tavc_env
-from agents.experiments.registry import make_allocator
-from agents.experiments.runner import Event, TrialResult, run_trial
-from agents.experiments.twin_tables import allocation_for, build_tables, random_allocation_run
+from tavc_agents.experiments.registry import make_allocator
+from tavc_agents.experiments.runner import Event, TrialResult, run_trial
+from tavc_agents.experiments.twin_tables import allocation_for, build_tables, random_allocation_run
 from tavc_env.twin import InterferenceTables, TwinArenaEnv
 
 DAHL = tavc_env.preset("dahl2004")

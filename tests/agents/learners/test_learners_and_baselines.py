@@ -20,11 +20,11 @@ import math
 import numpy as np
 import pytest
 
-from agents.allocators.baselines import FixedAllocator, RandomAllocator, StayAllocator
-from agents.experiments.registry import ALLOCATORS, make_allocator, make_policy
-from agents.learners.selection import EpsilonGreedy, Softmax, sample
-from agents.learners.tavc import TavcLearner, TavcParams, epsilon_tavc, softmax_tavc
-from agents.policy import Policy, allowed_actions, state_of
+from tavc_agents.allocators.baselines import FixedAllocator, RandomAllocator, StayAllocator
+from tavc_agents.experiments.registry import ALLOCATORS, make_allocator, make_policy
+from tavc_agents.learners.selection import EpsilonGreedy, Softmax, sample
+from tavc_agents.learners.tavc import TavcLearner, TavcParams, epsilon_tavc, softmax_tavc
+from tavc_agents.policy import Policy, allowed_actions, state_of
 
 ALPHA, GAMMA = 0.1, 0.95
 ONES2 = np.ones(2, np.int8)

@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from agents.studies import cli_startup
+from tavc_agents.studies import cli_startup
 
 
 def test_the_cli_module_imports_nothing_heavy() -> None:
-    code = "import sys, agents.cli; print(sorted(m for m in ('tavc_env', 'numba', 'numpy') if m in sys.modules))"
+    code = "import sys, tavc_agents.cli; print(sorted(m for m in ('tavc_env', 'numba', 'numpy') if m in sys.modules))"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
 

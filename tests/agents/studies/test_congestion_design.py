@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from agents.studies import congestion_design as design
+from tavc_agents.studies import congestion_design as design
 
 
 def test_every_candidate_is_a_valid_physical_arena() -> None:
@@ -41,7 +41,7 @@ def test_the_congestion_preset_is_the_committed_search_s_choice() -> None:
     import json
 
     import tavc_env
-    from agents.studies.common import RESULTS_DIR
+    from tavc_agents.studies.common import RESULTS_DIR
 
     report = json.loads((RESULTS_DIR / "congestion_design" / "congestion_design.json").read_text())
     chosen = report["summary"]["chosen"]["candidate"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.studies import differentiation as study
+from tavc_agents.studies import differentiation as study
 
 
 def test_specs_are_tagged_and_keyed_from_their_tags() -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.studies import dt_fidelity as study
+from tavc_agents.studies import dt_fidelity as study
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from agents.analysis.interference import RUN_FIELDS
-from agents.studies import interference as study
+from tavc_agents.analysis.interference import RUN_FIELDS
+from tavc_agents.studies import interference as study
 
 ROOT = Path(__file__).resolve().parents[3]
 COMMITTED = ROOT / "benchmarks" / "results"

@@ -1,5 +1,5 @@
-"""The liveness study (`agents.studies.liveness`, benchmarks/liveness.py) at its quick size, and
-the random arena generator it draws from (`agents.experiments.arenas`)."""
+"""The liveness study (`tavc_agents.studies.liveness`, benchmarks/liveness.py) at its quick size, and
+the random arena generator it draws from (`tavc_agents.experiments.arenas`)."""
 
 from __future__ import annotations
 
@@ -12,15 +12,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.experiments.arenas import (
+from tavc_agents.experiments.arenas import (
     ROBOTS,
     arena_config,
     draw_arena,
     random_arenas,
     refusal_category,
 )
-from agents.studies import STUDIES
-from agents.studies import liveness as study
+from tavc_agents.studies import STUDIES
+from tavc_agents.studies import liveness as study
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -89,7 +89,7 @@ def test_the_longest_gap_counts_the_start_and_the_end() -> None:
 
 
 def test_quick_run_end_to_end_and_a_rerun_resumes(tmp_path: Path) -> None:
-    assert STUDIES["liveness"] == "agents.studies.liveness"
+    assert STUDIES["liveness"] == "tavc_agents.studies.liveness"
     settings = study.Settings(quick=True, quiet=True, workers=1, out=tmp_path)
     outcome = study.run(settings)
     assert not outcome.failed and outcome.text.startswith("- **PASS**: 0 unreported jams")

@@ -20,9 +20,9 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from agents.learners.network import Mlp
-from agents.studies import allocators, tavc_model, vacancy_chain
-from agents.studies.common import RESULTS_DIR
+from tavc_agents.learners.network import Mlp
+from tavc_agents.studies import allocators, tavc_model, vacancy_chain
+from tavc_agents.studies.common import RESULTS_DIR
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.analysis.elasticity import Elasticity
-from agents.studies import regime_map as rm
+from tavc_agents.analysis.elasticity import Elasticity
+from tavc_agents.studies import regime_map as rm
 
 
 def test_bad_settings_are_refused_naming_the_field_and_what_is_allowed() -> None:

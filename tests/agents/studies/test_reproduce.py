@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from agents.experiments.files import write_manifest
-from agents.experiments.sweep import TrialSpec, result_path, run_sweep
-from agents.studies import reproduce
+from tavc_agents.experiments.files import write_manifest
+from tavc_agents.experiments.sweep import TrialSpec, result_path, run_sweep
+from tavc_agents.studies import reproduce
 
 
 @pytest.fixture(scope="module")

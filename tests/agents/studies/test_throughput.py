@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from agents.studies import throughput as study
+from tavc_agents.studies import throughput as study
 
 ROOT = Path(__file__).resolve().parents[3]
 

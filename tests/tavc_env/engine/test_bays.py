@@ -81,8 +81,8 @@ def test_a_free_station_with_bays_takes_an_arrival_into_the_bay_nearest_the_dock
 
 
 def test_bays_let_more_robots_work_a_circuit_at_once() -> None:
-    from agents.experiments.registry import make_allocator
-    from agents.experiments.runner import run_trial
+    from tavc_agents.experiments.registry import make_allocator
+    from tavc_agents.experiments.runner import run_trial
 
     def deliveries(bays: int) -> int:
         result = run_trial(

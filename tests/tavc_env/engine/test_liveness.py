@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import tavc_env
-from agents.allocators.baselines import RandomAllocator
-from agents.experiments.runner import run_trial
+from tavc_agents.allocators.baselines import RandomAllocator
+from tavc_agents.experiments.runner import run_trial
 from tavc_env import ArenaConfig, Circuit, Robot
 
 

@@ -374,8 +374,8 @@ def test_a_knot_of_robots_is_dissolved_by_the_escape_behaviour() -> None:
     """Regression: with instant loading and unloading, six robots on one circuit once knotted
     below a dock for good (epsilon TAVC, seed 2: deliveries stopped at 5621 s). Stuck robots now
     back away after STUCK_PATIENCE_S, so everyone keeps delivering to the end."""
-    from agents.experiments.registry import make_policy
-    from agents.experiments.runner import run_trial
+    from tavc_agents.experiments.registry import make_policy
+    from tavc_agents.experiments.runner import run_trial
 
     result = run_trial(
         lambda agent: make_policy("epsilon_tavc", epsilon=0.1, init="scaled"),

@@ -1,0 +1,421 @@
+"""The `tavc` command: run a trial, record a video, reproduce the paper, run a benchmark.
+
+    tavc trial --allocator softmax_tavc --measured-h 2            # one trial, progress bar, summary
+    tavc trial --allocator greedy --preset three_circuits_three_classes
+    tavc record --allocator random --minutes 5 --out arena.gif
+    tavc reproduce                                          # the paper's Table 1 (study table1)
+    tavc bench allocators --quick                           # any study in tavc_agents.studies
+    tavc plot timeline trial.json --out timeline.png        # figures from saved results
+
+`tavc <command> --help` explains each command. `reproduce` and `bench` run the package's studies
+(`tavc_agents.studies`), the same code as the scripts in `benchmarks/`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from tavc_agents import studies
+
+# The package (physics, numba, the studies) is imported only once a command runs, so that
+# `tavc --help` answers at once (benchmarks/cli_startup.py measures it against `python -c pass`).
+if TYPE_CHECKING:
+    from tavc_agents.experiments.runner import TrialResult
+
+NEEDS_MODEL = ("static", "greedy", "auction")
+DESCRIPTION = (
+    "Multi-robot task allocation in the prioritized transportation arena of Dahl, Mataric & "
+    "Sukhatme (DARS 2004)."
+)
+EPILOG = (
+    "Examples: tavc trial --allocator softmax_tavc --measured-h 2 | "
+    "tavc record --minutes 5 --out arena.gif | tavc reproduce | tavc bench allocators --quick"
+)
+COMMANDS = {
+    "trial": "run one trial and print a summary",
+    "record": "record a trial to an animated GIF (or its last frame to a PNG)",
+    "plot": "plot saved results (no rerun): timeline, q, interference, table1",
+    "reproduce": "reproduce the paper's Table 1 (the table1 study)",
+    "bench": "run one of the package's studies (the benchmarks)",
+}
+
+
+def _allocator(args: argparse.Namespace) -> Any:
+    from tavc_agents.experiments.registry import make_allocator
+    from tavc_agents.studies.common import RESULTS_DIR, parse_key_values
+
+    params = parse_key_values(args.param, "--param", "temperature=0.01")
+    if args.allocator in NEEDS_MODEL and "model" not in params and "circuits" not in params:
+        path = args.model or RESULTS_DIR / "tavc_model" / args.preset / "model.json"
+        if not Path(path).exists():
+            raise ValueError(
+                f"allocator {args.allocator!r} needs the TAVC model of the arena, and {path} does "
+                f"not exist; allowed: --model PATH, or make it with: tavc bench tavc_model "
+                f"--preset {args.preset}"
+            )
+        try:
+            params["model"] = json.loads(Path(path).read_text())
+        except (OSError, json.JSONDecodeError) as error:
+            raise ValueError(
+                f"--model {path} could not be read ({error}); allowed: a model.json written by "
+                "the tavc_model study (tavc bench tavc_model)"
+            ) from None
+    return make_allocator(args.allocator, **params)
+
+
+def _trial_options(parser: argparse.ArgumentParser) -> None:
+    from tavc_agents.experiments.registry import ALLOCATORS
+    from tavc_env import PRESETS
+
+    parser.add_argument("--preset", default="dahl2004", choices=sorted(PRESETS))
+    parser.add_argument(
+        "--allocator", default="softmax_tavc", choices=ALLOCATORS, help="default: softmax_tavc"
+    )
+    parser.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="allocator parameter, e.g. --param temperature=0.01 --param init=paper (repeatable)",
+    )
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="arena override, e.g. --set source_service_s=15 (repeatable)",
+    )
+    parser.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        help=f"model.json for {', '.join(NEEDS_MODEL)} (default: the committed one of the preset)",
+    )
+    parser.add_argument("--seed", type=int, default=0)
+
+
+def cmd_trial(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from tavc_agents.experiments.runner import run_trial
+    from tavc_agents.studies.common import arena_overrides
+    from tavc_env import make_config
+
+    allocator = _allocator(args)  # bad parameters and arenas are refused before the run starts
+    overrides = arena_overrides(args.set)
+    make_config(args.preset, **overrides)
+    total = args.convergence_h + args.measured_h
+    bar = tqdm(total=round(total * 3600), unit="sim s", dynamic_ncols=True, file=sys.stdout)
+    done = [0]
+
+    def progress(t: float) -> None:
+        bar.update(round(t) - done[0])
+        done[0] = round(t)
+
+    try:
+        result = run_trial(
+            allocator,
+            seed=args.seed,
+            convergence_s=args.convergence_h * 3600.0,
+            measured_s=args.measured_h * 3600.0,
+            progress=progress,
+            preset=args.preset,
+            **overrides,
+        )
+    finally:
+        bar.close()
+    print(summary(result, args.allocator))
+    if args.out is not None:
+        result.save(args.out)
+        print(f"wrote {args.out}")
+    return 0
+
+
+def summary(result: TrialResult, allocator: str) -> str:
+    """A trial's measured period as a small table."""
+    import numpy as np
+
+    from tavc_agents.analysis import allocation
+    from tavc_env import metrics
+
+    t0, t1 = result.measured_window
+    perf = allocation.delivered_performance(result, t0, t1)
+    shares = [
+        metrics.time_share(result.initial_circuits, result.changes, c, t0, t1)
+        for c in range(len(result.values))
+    ]
+    classes = sorted(set(result.speed_classes), key=result.speed_classes.index)
+    lines = [
+        f"{allocator} on {result.env_kwargs.get('preset', 'dahl2004')}, seed {result.seed}: "
+        f"measured {(t1 - t0) / 3600:g} h after {t0 / 3600:g} h",
+        f"  delivered value per robot per 10 s: {perf:.4f}",
+        "  circuit switches per robot per hour: "
+        f"{allocation.switches_per_robot_h(result, t0, t1):.2f}",
+        f"  share of time on each circuit (circuit values {[round(w) for w in result.values]}):",
+    ]
+    for cls in classes:
+        members = [i for i, c in enumerate(result.speed_classes) if c == cls]
+        row = [float(np.mean([s[i] for i in members])) for s in shares]
+        lines.append(f"    {cls:>8} robots ({len(members)}): " + "  ".join(f"{x:.2f}" for x in row))
+    jams = f"{result.jams} ({result.jammed_s / 60:.0f} min jammed)" if result.jams else "none"
+    lines.append(f"  wall time {result.wall_s:.1f} s; escapes {result.escapes}; jams {jams}")
+    return "\n".join(lines)
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    try:
+        from PIL import Image
+    except ImportError as error:
+        raise ImportError(
+            "recording needs Pillow and pygame: pip install 'tavc-env[render]'"
+        ) from error
+    kind = args.out.suffix.lower()
+    if kind not in (".gif", ".png"):
+        raise ValueError(
+            f"--out {args.out} is invalid; allowed: a .gif (animation) or .png (last frame) file"
+        )
+    from tavc_agents.experiments.runner import run_trial
+    from tavc_agents.studies.common import arena_overrides
+
+    frames: list[Any] = []
+
+    def grab(env: Any) -> None:
+        frames.append(Image.fromarray(env.render()))
+
+    run_trial(
+        _allocator(args),
+        seed=args.seed,
+        convergence_s=0.0,
+        measured_s=args.minutes * 60.0,
+        on_step=grab,
+        preset=args.preset,
+        render_mode="rgb_array",
+        decision_interval_s=args.frame_s,
+        **arena_overrides(args.set),
+    )
+    if kind == ".png":
+        frames[-1].save(args.out)
+        print(f"wrote {args.out}: the arena after {args.minutes:g} simulated minutes")
+        return 0
+    frames[0].save(
+        args.out,
+        save_all=True,
+        append_images=frames[1:],
+        duration=round(1000 / args.fps),
+        loop=0,
+        optimize=True,
+    )
+    print(
+        f"wrote {args.out}: {len(frames)} frames, {args.frame_s:g} simulated s each, "
+        f"at {args.fps:g} frames per second"
+    )
+    return 0
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from tavc_agents.analysis import plots
+    from tavc_agents.experiments.runner import TrialResult
+    from tavc_agents.studies.common import RESULTS_DIR
+
+    if args.what == "interference":
+        source = args.source or RESULTS_DIR / "interference.csv"
+        plots.interference_curve(_existing(source), args.out)
+    elif args.what == "table1":
+        return _redraw_table1(_existing(args.source))
+    else:
+        trials = {}
+        for source in args.source_list:
+            result = TrialResult.load(_existing(source))
+            trials[result.label or Path(source).stem] = result
+        if args.what == "timeline":
+            plots.allocation_timeline(trials, args.out, args.from_h, args.to_h)
+        else:
+            if len(trials) != 1:
+                raise ValueError(f"q takes one trial file, given {len(trials)}; allowed: one")
+            plots.q_trajectories(next(iter(trials.values())), args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _redraw_table1(folder: Path) -> int:
+    """Table 1's reports and figures written again from the trials saved in `folder`, with the
+    settings its provenance records (every trial is loaded, none rerun)."""
+    import tavc_agents.studies.table1 as table1
+    from tavc_agents.experiments.provenance import load_provenance
+
+    meta = load_provenance(folder)
+    if meta is None:
+        raise ValueError(
+            f"{folder} has no provenance.json; allowed: an output folder of the table1 study"
+        )
+    outcome = table1.run(table1.settings_from_provenance(meta, folder))
+    print(outcome.text)
+    return 0
+
+
+def _existing(path: str | Path) -> Path:
+    if not Path(path).exists():
+        raise ValueError(
+            f"{path} does not exist; allowed: a results file written by tavc or a benchmark"
+        )
+    return Path(path)
+
+
+def _run_study(name: str, argv: Sequence[str], prog: str) -> int:
+    """Run study `name` with command-line arguments `argv`, as `benchmarks/<name>.py` does."""
+    from tavc_agents.studies.common import run_study
+
+    module = studies.load(name)
+    return run_study(module, argv, module.__doc__ or name, prog)
+
+
+def light_parser() -> argparse.ArgumentParser:
+    """The top level only (commands and their one-line help): what `tavc --help` shows, without
+    importing the package."""
+    top = argparse.ArgumentParser(prog="tavc", description=DESCRIPTION, epilog=EPILOG)
+    sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, text in COMMANDS.items():
+        sub.add_parser(name, help=text, add_help=False)
+    return top
+
+
+def parser() -> argparse.ArgumentParser:
+    from tavc_agents.experiments.registry import TEAMS
+
+    top = argparse.ArgumentParser(prog="tavc", description=DESCRIPTION, epilog=EPILOG)
+    sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    trial = sub.add_parser(
+        "trial",
+        help=COMMANDS["trial"],
+        description="Run one trial: a convergence period, then a measured period whose delivered "
+        "value, switches and time shares are printed. Team allocators "
+        f"({', '.join(sorted(TEAMS))}) coordinate the robots; the others are per robot.",
+    )
+    _trial_options(trial)
+    trial.add_argument(
+        "--convergence-h",
+        type=float,
+        default=15.0,
+        help="learning (convergence) period before it, hours (default 15, the paper's)",
+    )
+    trial.add_argument(
+        "--measured-h", type=float, default=5.0, help="measured period, hours (default 5)"
+    )
+    trial.add_argument("--out", type=Path, default=None, help="save the full result as JSON")
+    trial.set_defaults(run=cmd_trial)
+
+    record = sub.add_parser(
+        "record",
+        help=COMMANDS["record"],
+        description="Run a trial from the start and save one rendered frame every --frame-s "
+        "simulated seconds as an animated GIF, or the last frame as a PNG (needs the render "
+        "extra: pygame and Pillow).",
+    )
+    _trial_options(record)
+    record.add_argument("--minutes", type=float, default=5.0, help="simulated minutes (default 5)")
+    record.add_argument("--frame-s", type=float, default=2.0, help="simulated s per frame (2)")
+    record.add_argument("--fps", type=float, default=15.0, help="frames per second of the GIF")
+    record.add_argument(
+        "--out", type=Path, default=Path("arena.gif"), help="the .gif or .png to write"
+    )
+    record.set_defaults(run=cmd_record)
+
+    plot = sub.add_parser(
+        "plot",
+        help=COMMANDS["plot"],
+        description="Draw a figure from saved results. timeline: which circuit each robot served "
+        "over time, one panel per trial file (from `tavc trial --out` or a benchmark's saved "
+        "trials); q: the learners' Q(high) - Q(other) over time, fast against slow; interference: "
+        "the interference curve t(n) from benchmarks/results/interference.csv; table1: Table 1's "
+        "reports and figures redrawn from a table1 output folder's saved trials.",
+    )
+    plot.add_argument("what", choices=["timeline", "q", "interference", "table1"])
+    plot.add_argument(
+        "source_list",
+        nargs="*",
+        metavar="FILE",
+        help="trial JSON file(s) (timeline, q), interference.csv (default: the committed one), "
+        "or a table1 output folder (table1)",
+    )
+    plot.add_argument("--from-h", type=float, default=None, help="timeline: start (hours)")
+    plot.add_argument("--to-h", type=float, default=None, help="timeline: end (hours)")
+    plot.add_argument("--out", type=Path, default=Path("plot.png"), help="the PNG to write")
+    plot.set_defaults(run=cmd_plot)
+
+    reproduce = sub.add_parser(
+        "reproduce",
+        help=COMMANDS["reproduce"],
+        description="Run the table1 study with the arguments that follow (its options: "
+        "tavc reproduce -- --help).",
+    )
+    reproduce.add_argument("script_args", nargs=argparse.REMAINDER)
+    reproduce.set_defaults(
+        run=lambda a: _run_study("table1", _strip(a.script_args), "tavc reproduce")
+    )
+
+    bench = sub.add_parser(
+        "bench",
+        help=COMMANDS["bench"],
+        description="Run study NAME with the arguments that follow (its options: "
+        f"tavc bench NAME -- --help); NAME is one of: {', '.join(sorted(studies.STUDIES))}.",
+    )
+    bench.add_argument("name", help="the study's name, e.g. allocators")
+    bench.add_argument("script_args", nargs=argparse.REMAINDER)
+    bench.set_defaults(
+        run=lambda a: _run_study(a.name, _strip(a.script_args), f"tavc bench {a.name}")
+    )
+    return top
+
+
+def _strip(args: Sequence[str]) -> list[str]:
+    return list(args[1:]) if args and args[0] == "--" else list(args)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    given = list(sys.argv[1:] if argv is None else argv)
+    if not given or given[0] in ("-h", "--help") or given[0] not in COMMANDS:
+        light_parser().parse_args(given)  # help, or the error for a missing or unknown command
+    top = parser()
+    # `tavc reproduce --quick` and `tavc bench NAME --trials 3`: the study's own options follow
+    # the command (with or without a `--` first); the study's parser checks them
+    args, extra = top.parse_known_args(argv)
+    if extra and not hasattr(args, "script_args"):
+        top.error(f"unrecognized arguments: {' '.join(extra)}")
+    if hasattr(args, "script_args"):
+        args.script_args = [*extra, *args.script_args]
+    if getattr(args, "name", None) is not None and args.name not in studies.STUDIES:
+        top.error(f"study {args.name!r} is unknown; allowed: {sorted(studies.STUDIES)}")
+    for name in ("measured_h", "minutes", "frame_s", "fps"):
+        value = getattr(args, name, None)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            top.error(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")
+    if getattr(args, "what", None) is not None:
+        args.source = args.source_list[0] if args.source_list else None
+        if args.what != "interference" and not args.source_list:
+            top.error(
+                f"plot {args.what} needs its input; allowed: trial JSON file(s) for timeline and "
+                "q, a table1 output folder for table1"
+            )
+    convergence = getattr(args, "convergence_h", 0.0)
+    if not (math.isfinite(convergence) and convergence >= 0):
+        top.error(f"--convergence-h = {convergence}; allowed: a finite number >= 0")
+    try:
+        if getattr(args, "out", None) is not None:
+            from tavc_agents.experiments.files import check_writable
+
+            check_writable(args.out)  # before any simulation, not after it
+        code: int = args.run(args)
+    except ValueError as error:
+        top.error(str(error))
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,165 @@
+"""Where results come from: the machine, software versions, git commit and command of a run, and
+sweeps that record them.
+
+A study's report starts with the provenance of the run that *computed* its trials. It is saved as
+`provenance.json` beside the report whenever a run computes at least one trial, and read back
+when every trial is resumed from disk, so a report regenerated from saved trials states where
+they came from and comes out byte for byte as before.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from importlib import metadata
+from pathlib import Path
+from typing import Any, TypeVar
+
+from tavc_agents.experiments.files import write_text
+from tavc_agents.experiments.sweep import JobKind, run_jobs
+
+PROVENANCE_FILE = "provenance.json"
+PACKAGE_ROOT = Path(__file__).resolve().parents[3]  # the source checkout, when installed from one
+_DISTRIBUTIONS = ("numpy", "scipy", "pymunk", "numba", "pettingzoo", "gymnasium")
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def _ram_gib() -> float | None:
+    try:
+        with open("/proc/meminfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.startswith("MemTotal:"):
+                    return round(int(line.split()[1]) / 1024**2, 1)
+    except OSError:
+        pass
+    return None
+
+
+def _version(distribution: str) -> str | None:
+    try:
+        return metadata.version(distribution)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def _git(*args: str) -> str | None:
+    if not (PACKAGE_ROOT / ".git").exists():
+        return None
+    try:
+        out = subprocess.run(
+            ["git", *args],
+            cwd=PACKAGE_ROOT,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip()
+
+
+def run_metadata(**extra: Any) -> dict[str, Any]:
+    """Machine, software versions, git state, UTC time and the exact command line of this run."""
+    commit = _git("rev-parse", "HEAD")
+    # Dirty means changed code or docs; result files written by this or a concurrent run do not count.
+    status = _git("status", "--porcelain", "--", ".", ":(exclude)benchmarks/results")
+    versions = {"python": platform.python_version()}
+    versions.update({name: _version(name) for name in _DISTRIBUTIONS})  # type: ignore[misc]
+    versions["tavc_env"] = _version("tavc-env")  # type: ignore[assignment]
+    meta: dict[str, Any] = {
+        "timestamp_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "command": " ".join([Path(sys.executable).name, *sys.argv]),
+        "cwd": os.getcwd(),
+        "machine": {
+            "platform": platform.platform(),
+            "cpu_model": _cpu_model(),
+            "cores": os.cpu_count(),
+            "ram_gib": _ram_gib(),
+        },
+        "versions": versions,
+        "git": {"commit": commit, "dirty": None if status is None else bool(status)},
+    }
+    meta.update(extra)
+    return meta
+
+
+def load_provenance(folder: str | Path) -> dict[str, Any] | None:
+    """The provenance saved in `folder`, or None."""
+    path = Path(folder) / PROVENANCE_FILE
+    if not path.exists():
+        return None
+    data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    return data
+
+
+def save_provenance(folder: str | Path, meta: Mapping[str, Any]) -> Path:
+    """Write `meta` as `folder`/provenance.json (safely: see `tavc_agents.experiments.files`)."""
+    path = Path(folder) / PROVENANCE_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write_text(path, json.dumps(meta, indent=2) + "\n")
+
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+def run_recorded(
+    jobs: Sequence[J],
+    kind: JobKind[J, R],
+    jobs_dir: str | Path,
+    report_dir: str | Path,
+    settings: Mapping[str, Any],
+    *,
+    workers: int | None = None,
+    backend: str = "local",
+    wall_of: Callable[[R], float] | None = None,
+    progress_bar: bool = True,
+) -> tuple[dict[str, R], dict[str, Any]]:
+    """Run (or resume) `jobs` in `jobs_dir` with a progress bar; return the results by key and the
+    provenance of the results.
+
+    When this run computes any job, the provenance is this run's (taken before the jobs start,
+    so it names the commit they ran from), with its wall time and how many jobs were run or
+    resumed, and it is saved in `report_dir`. When every job is resumed, the provenance saved
+    there by the run that computed them is returned (or, if there is none, this run's)."""
+    started = time.perf_counter()
+    meta = run_metadata(settings=dict(settings))
+    resumed: list[str] = []
+
+    def note(job: J, result: R, was_resumed: bool) -> None:
+        if was_resumed:
+            resumed.append(kind.key(job))
+
+    results = run_jobs(
+        jobs, kind, jobs_dir, workers, note, progress_bar=progress_bar, backend=backend
+    )
+    stored = load_provenance(report_dir)
+    if len(resumed) == len(jobs) and stored is not None:
+        return results, stored
+    meta.update(
+        wall_time_s=time.perf_counter() - started,
+        trials_resumed=len(resumed),
+        trials_run=len(jobs) - len(resumed),
+    )
+    if wall_of is not None:
+        meta["trial_wall_s_total"] = sum(wall_of(r) for r in results.values())
+    if len(resumed) < len(jobs):
+        save_provenance(report_dir, meta)
+    return results, meta

@@ -1,0 +1,599 @@
+"""The sweep runner: many independent trials in parallel, saved as they finish, resumable.
+
+A sweep is a list of `TrialSpec`s (plain data: allocator name and parameters, env arguments,
+seed, periods). Each finished trial is written to `<out_dir>/<key>.json` (atomically, with a
+checksum) by the process that ran it, before its result travels anywhere, so nothing that happens
+to the sweep afterwards can lose it: a worker's error (the other trials go on; the error names the
+trial, its seed and how to rerun just it), Ctrl-C, SIGTERM, or SIGKILL of the driver (the local
+pool's workers die with it). Rerunning the same sweep loads the finished trials and runs only the
+rest; a stored trial that is corrupt or was edited is reported and run again.
+
+Backends: `"local"` (default) runs trials in a process pool over this machine's cores and needs
+nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
+or, with `RAY_ADDRESS` set, on a cluster whose nodes have this package installed. Either way the
+driver writes each result the moment it arrives, so the two backends resume each other's sweeps.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import dataclasses
+import hashlib
+import inspect
+import json
+import os
+import re
+import signal
+import sys
+import traceback
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Generic, TypeVar
+
+from tqdm import tqdm
+
+from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
+from tavc_agents.experiments.registry import make_allocator
+from tavc_agents.experiments.runner import Event, TrialResult, run_trial
+from tavc_env import ArenaConfig
+
+_KEY = re.compile(r"^[A-Za-z0-9_.=-]+$")
+BACKENDS = ("local", "ray")
+
+
+TagValue = str | int | float | bool | tuple[str | int | float | bool, ...]
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """One trial as data. `key` names its result file and must be unique within a sweep.
+
+    `tags` say what the trial stands for in its study (condition, arena, temperature, seed, ...):
+    reports group trials by them. A study derives `key` from its tags; nothing parses a key back.
+    Tags are labels, not settings: a saved trial resumes whatever its tags.
+    """
+
+    key: str
+    allocator: str
+    seed: int
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    allocator_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    convergence_s: float = 15 * 3600.0
+    measured_s: float = 5 * 3600.0
+    snapshot_every_s: float = 3600.0
+    events: tuple[Event, ...] = ()
+    tags: Mapping[str, TagValue] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not _KEY.match(self.key):
+            raise ValueError(
+                f"key = {self.key!r} is invalid; allowed: letters, digits and _ . = - (a file name)"
+            )
+        scalar = (str, int, float, bool)
+        for name, value in dict(self.tags).items():
+            ok = isinstance(name, str) and (
+                isinstance(value, scalar)
+                or (isinstance(value, (tuple, list)) and all(isinstance(v, scalar) for v in value))
+            )
+            if not ok:
+                raise ValueError(
+                    f"tag {name!r} = {value!r} of trial {self.key!r} is invalid; allowed: a text "
+                    "name and a str, int, float or bool value (or a tuple of them)"
+                )
+
+
+def run_spec(spec: TrialSpec) -> TrialResult:
+    """Run one trial described by `spec` (in whatever process calls it)."""
+    return run_trial(
+        make_allocator(spec.allocator, **spec.allocator_kwargs),
+        seed=spec.seed,
+        convergence_s=spec.convergence_s,
+        measured_s=spec.measured_s,
+        snapshot_every_s=spec.snapshot_every_s,
+        label=spec.key,
+        events=spec.events,
+        **dict(spec.env_kwargs),
+    )
+
+
+def result_path(out_dir: Path, key: str) -> Path:
+    return out_dir / f"{key}.json"
+
+
+def spec_record(spec: TrialSpec) -> dict[str, Any]:
+    """The spec as plain JSON data (what a saved result is checked against on resume), with a
+    digest of the arena it resolves to: a preset whose definition changed (a new default physics
+    step, say) no longer matches the trials saved under the old one."""
+    data: dict[str, Any] = json.loads(json.dumps(asdict(spec), default=repr))
+    if not data["events"]:
+        del data["events"]  # trials saved before events existed had none; they still resume
+    if not data["tags"]:
+        del data["tags"]
+    data["arena"] = arena_digest(spec.env_kwargs)
+    return data
+
+
+def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
+    """A short digest of the arena configuration that `env_kwargs` resolve to (the env's own
+    arguments, such as time limits, are not part of the arena)."""
+    from tavc_env import make_config
+    from tavc_env.env import TavcArenaEnv
+
+    env_only = set(inspect.signature(TavcArenaEnv.__init__).parameters) - {"preset", "config"}
+    arena = {k: v for k, v in env_kwargs.items() if k not in env_only}
+    config = make_config(arena.pop("preset", "dahl2004"), **arena)
+    return hashlib.sha256(digest_text(config).encode()).hexdigest()[:16]
+
+
+# Fields added to ArenaConfig after trial records began to carry digests. Each is neutral at its
+# default (the arena behaves as before it existed), so it enters the digest only when it is set:
+# trials stored before it came keep their digest and are resumed.
+FIELDS_SINCE_DIGESTS = ("clearance_governor_m", "station_bays")
+
+
+def digest_text(config: ArenaConfig) -> str:
+    """What `arena_digest` hashes: the config's repr, less the fields of `FIELDS_SINCE_DIGESTS`
+    that are at their defaults."""
+    parts = [
+        f"{f.name}={getattr(config, f.name)!r}"
+        for f in dataclasses.fields(config)
+        if f.repr and (f.name not in FIELDS_SINCE_DIGESTS or getattr(config, f.name) != f.default)
+    ]
+    return f"{type(config).__qualname__}({', '.join(parts)})"
+
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+@dataclass(frozen=True)
+class JobKind(Generic[J, R]):
+    """How one kind of job is run, named, saved and checked on resume.
+
+    `run` must be a module-level function (it is sent to worker processes or Ray tasks);
+    `record(job)` is the job as plain JSON data, stored beside the result: a saved result is only
+    resumed for a job whose record it matches (`same(stored, wanted)`, equality by default). `save(result, record, path)` writes atomically and
+    `load(path)` returns the result and its stored record.
+    """
+
+    run: Callable[[J], R]
+    key: Callable[[J], str]
+    record: Callable[[J], dict[str, Any]]
+    save: Callable[[R, dict[str, Any], Path], None]
+    load: Callable[[Path], tuple[R, dict[str, Any] | None]]
+    unit: str = "job"
+    same: Callable[[dict[str, Any] | None, dict[str, Any]], bool] = field(
+        default=lambda stored, wanted: stored == wanted
+    )
+    check: Callable[[J], None] = field(default=lambda job: None)
+    """Raise a ValueError for a job that cannot run (called for every job before any runs)."""
+
+
+def run_jobs(
+    jobs: Sequence[J],
+    kind: JobKind[J, R],
+    out_dir: str | Path,
+    workers: int | None = None,
+    on_done: Callable[[J, R, bool], None] | None = None,
+    progress_bar: bool = False,
+    backend: str = "local",
+) -> dict[str, R]:
+    """Run every job not already finished in `out_dir` (one file per job key); return all results
+    by key. See `run_sweep` for the arguments; `run_sweep` is this for trials."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend = {backend!r} is invalid; allowed: {list(BACKENDS)}")
+    if progress_bar:
+        bar = tqdm(total=len(jobs), unit=kind.unit, dynamic_ncols=True, file=sys.stdout)
+        user_on_done = on_done
+
+        def on_done(job: J, result: R, resumed: bool) -> None:
+            bar.update(1)
+            bar.set_postfix_str(f"{kind.key(job)}{' (resumed)' if resumed else ''}")
+            if user_on_done is not None:
+                user_on_done(job, result, resumed)
+
+        try:
+            return run_jobs(jobs, kind, out_dir, workers, on_done, backend=backend)
+        finally:
+            bar.close()
+
+    keys = [kind.key(j) for j in jobs]
+    duplicates = sorted({k for k in keys if keys.count(k) > 1})
+    if duplicates:
+        raise ValueError(f"duplicate {kind.unit} keys {duplicates}; allowed: unique keys")
+    bad = [k for k in keys if not _KEY.match(k)]
+    if bad:
+        raise ValueError(
+            f"{kind.unit} keys {bad} are invalid; allowed: letters, digits and _ . = - (file names)"
+        )
+    n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    if not isinstance(n_workers, int) or n_workers < 1:
+        raise ValueError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, R] = {}
+    todo: list[J] = []
+    for job in jobs:
+        stored = _saved(job, kind, out)
+        if stored is None:
+            todo.append(job)
+            continue
+        results[kind.key(job)] = stored[0]
+        if on_done is not None:
+            on_done(job, stored[0], True)
+
+    records = {}
+    for job in todo:  # bad input is refused before anything runs
+        kind.check(job)
+        records[kind.key(job)] = kind.record(job)
+    failures: list[Failure] = []
+
+    def finish(job: J, result: R, saved: bool) -> None:
+        key = kind.key(job)
+        if not saved:
+            kind.save(result, kind.record(job), result_path(out, key))
+        results[key] = result
+        if on_done is not None:
+            on_done(job, result, False)
+
+    def fail(job: J, error: BaseException) -> None:
+        failures.append(_failure(kind, job, error, out))
+
+    with _stop_on_sigterm():
+        if backend == "ray":
+            _run_on_ray(todo, kind.run, n_workers if workers is not None else None, finish, fail)
+        elif n_workers == 1 or len(todo) <= 1:
+            for job in todo:
+                task = _Task(
+                    kind.run,
+                    kind.save,
+                    job,
+                    records[kind.key(job)],
+                    result_path(out, kind.key(job)),
+                )
+                try:
+                    result = task()
+                except Exception as error:
+                    fail(job, error)
+                else:
+                    finish(job, result, True)
+        else:
+            _run_in_pool(todo, kind, records, out, min(n_workers, len(todo)), finish, fail)
+    if failures:
+        raise SweepError(failures, kind.unit)
+    return results
+
+
+def _saved(job: J, kind: JobKind[J, R], out: Path) -> tuple[R] | None:
+    """The saved result of `job` in `out`, as a 1-tuple, if a run would resume it; None if it
+    must run (no file, or a corrupt one, which is named). A result saved with other settings is
+    a ValueError: it is never overwritten or mixed in."""
+    key = kind.key(job)
+    path = result_path(out, key)
+    if not path.exists():
+        return None
+    try:
+        stored, record = kind.load(path)
+    except CorruptFileError as error:
+        print(f"{error}; running {kind.unit} {key!r} again", file=sys.stderr)
+        return None
+    if not kind.same(record, kind.record(job)):
+        raise ValueError(
+            f"{path} holds {kind.unit} {key!r} run with different settings "
+            f"({record or 'unknown'}); allowed: the same settings to resume, or another "
+            "output folder (or delete the file) for new ones"
+        )
+    return (stored,)
+
+
+def saved_results(jobs: Sequence[J], kind: JobKind[J, R], out_dir: str | Path) -> dict[str, R]:
+    """The results of `jobs` already saved in `out_dir` (those a run would resume), by key,
+    without running anything: what an interim report of an unfinished sweep is made from."""
+    out = Path(out_dir)
+    found = {}
+    for job in jobs:
+        stored = _saved(job, kind, out)
+        if stored is not None:
+            found[kind.key(job)] = stored[0]
+    return found
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A job that raised: its key, its record (settings, seed) and the error."""
+
+    key: str
+    record: dict[str, Any]
+    error: str
+    record_path: Path
+
+
+class SweepError(RuntimeError):
+    """Some jobs of a sweep raised; every other job finished and was saved."""
+
+    def __init__(self, failures: Sequence[Failure], unit: str) -> None:
+        self.failures = list(failures)
+        first = self.failures[0]
+        lines = [
+            f"{len(self.failures)} {unit}(s) failed; every other {unit} finished and is saved:"
+        ]
+        for f in self.failures:
+            seed = f.record.get("seed", "-")
+            lines.append(f"  {f.key} (seed {seed}): {f.error.strip().splitlines()[-1]}")
+        lines.append(
+            f"To rerun just one: python -m tavc_agents.experiments.sweep {first.record_path} "
+            "(or rerun the whole command: finished ones are resumed, not recomputed)."
+        )
+        lines.append(f"First traceback:\n{first.error}")
+        super().__init__("\n".join(lines))
+
+
+def _failure(kind: JobKind[J, R], job: J, error: BaseException, out: Path) -> Failure:
+    key = kind.key(job)
+    text = "".join(traceback.format_exception(error))
+    record = kind.record(job)
+    path = out / f"{key}.failed.json"
+    with contextlib.suppress(OSError, ValueError):
+        from tavc_agents.experiments.files import write_text
+
+        write_text(path, json.dumps({"unit": kind.unit, "record": record, "error": text}))
+    return Failure(key, record, text, path)
+
+
+@dataclass(frozen=True)
+class _Task(Generic[J, R]):
+    """One job as a worker runs it: run, then save the result before returning it."""
+
+    run: Callable[[J], R]
+    save: Callable[[R, dict[str, Any], Path], None]
+    job: J
+    record: dict[str, Any]
+    path: Path
+
+    def __call__(self) -> R:
+        result = self.run(self.job)
+        self.save(result, self.record, self.path)
+        return result
+
+
+def _die_with_parent(parent: int) -> None:
+    """Pool worker initialiser: ask Linux to kill this worker when its parent dies (SIGKILL of the
+    driver leaves no orphan burning a core); elsewhere a no-op."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent died before the request took effect
+        os._exit(1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's to handle
+
+
+def _run_in_pool(
+    todo: Sequence[J],
+    kind: JobKind[J, R],
+    records: Mapping[str, dict[str, Any]],
+    out: Path,
+    n_workers: int,
+    finish: Callable[[J, R, bool], None],
+    fail: Callable[[J, BaseException], None],
+) -> None:
+    pool = ProcessPoolExecutor(
+        max_workers=n_workers, initializer=_die_with_parent, initargs=(os.getpid(),)
+    )
+    futures: dict[Future[R], J] = {}
+    try:
+        for job in todo:
+            task = _Task(
+                kind.run, kind.save, job, records[kind.key(job)], result_path(out, kind.key(job))
+            )
+            futures[pool.submit(task)] = job
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                error = future.exception()
+                if error is not None:
+                    fail(futures[future], error)
+                else:
+                    finish(futures[future], future.result(), True)
+    finally:
+        # On Ctrl-C or SIGTERM: queued jobs are dropped, running ones stop with their workers;
+        # every finished one was saved by its worker before it reported back.
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _stop_on_sigterm() -> Iterator[None]:
+    """Within the block, SIGTERM stops the sweep as Ctrl-C does (with KeyboardInterrupt)."""
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _save_trial(result: TrialResult, record: dict[str, Any], path: Path) -> None:
+    result.spec = record
+    result.save(path)
+
+
+def _load_trial(path: Path) -> tuple[TrialResult, dict[str, Any] | None]:
+    result = TrialResult.load(path)
+    return result, result.spec
+
+
+def _save_json(result: dict[str, Any], record: dict[str, Any], path: Path) -> None:
+    write_record(path, {"record": record, "result": result})
+
+
+def _load_json(path: Path) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    data = read_record(path)
+    try:
+        return data["result"], data.get("record")
+    except KeyError:
+        raise CorruptFileError(f"{path} has no 'result'; it is not a saved job") from None
+
+
+def _same_trial(stored: dict[str, Any] | None, wanted: dict[str, Any]) -> bool:
+    if stored is None:
+        return False
+    # Tags are labels, not settings (and trials saved before tags existed have none).
+    stored = {k: v for k, v in stored.items() if k != "tags"}
+    wanted = {k: v for k, v in wanted.items() if k != "tags"}
+    if "arena" not in stored:
+        # Saved before records carried the arena's digest (November 2026), when every preset
+        # still had its original definition: taken as made with the arena it names today.
+        return stored == {k: v for k, v in wanted.items() if k != "arena"}
+    return stored == wanted
+
+
+def _check_spec(spec: TrialSpec) -> None:
+    make_allocator(spec.allocator, **spec.allocator_kwargs)  # names a bad allocator or parameter
+
+
+TRIALS: JobKind[TrialSpec, TrialResult] = JobKind(
+    check=_check_spec,
+    run=run_spec,
+    key=lambda spec: spec.key,
+    record=spec_record,
+    save=_save_trial,
+    load=_load_trial,
+    unit="trial",
+    same=_same_trial,
+)
+
+
+def run_sweep(
+    specs: Sequence[TrialSpec],
+    out_dir: str | Path,
+    workers: int | None = None,
+    on_done: Callable[[TrialSpec, TrialResult, bool], None] | None = None,
+    progress_bar: bool = False,
+    backend: str = "local",
+) -> dict[str, TrialResult]:
+    """Run every spec not already finished in `out_dir`; return all results by key.
+
+    `workers`: processes (default: all cores; 1 runs in this process). `on_done(spec, result,
+    resumed)` is called for each trial as it becomes available (resumed: loaded from disk).
+    `progress_bar`: show a tqdm bar over trials on standard output. `backend`: one of `BACKENDS`
+    (with `"ray"`, `workers` caps the CPUs of a Ray instance started here; ignored when joining
+    a running cluster through `RAY_ADDRESS`).
+    """
+    return run_jobs(specs, TRIALS, out_dir, workers, on_done, progress_bar, backend)
+
+
+def json_jobs(
+    run: Callable[[J], dict[str, Any]],
+    key: Callable[[J], str],
+    unit: str = "run",
+    omit: Collection[str] = (),
+) -> JobKind[J, dict[str, Any]]:
+    """A `JobKind` for jobs that are frozen dataclasses and results that are JSON data: each is
+    saved as `{"record": <the job>, "result": <the result>}`. Fields named in `omit` stay out of
+    the record (bulky inputs; the job must then carry a digest of them in another field, so that
+    a changed input still fails to resume)."""
+
+    def record(job: J) -> dict[str, Any]:
+        fields = {k: v for k, v in asdict(job).items() if k not in omit}  # type: ignore[call-overload]
+        data: dict[str, Any] = json.loads(json.dumps(fields, default=repr))
+        return data
+
+    return JobKind(run=run, key=key, record=record, save=_save_json, load=_load_json, unit=unit)
+
+
+def _run_on_ray(
+    todo: Sequence[J],
+    run: Callable[[J], R],
+    workers: int | None,
+    finish: Callable[[J, R, bool], None],
+    fail: Callable[[J, BaseException], None],
+) -> None:
+    """Run `todo` as Ray tasks (one CPU each), saving each result here as soon as it arrives (the
+    tasks may run on other machines); on Ctrl-C or SIGTERM the results that are ready are saved
+    before the rest are cancelled."""
+    if not todo:
+        return
+    try:
+        import ray
+    except ImportError as error:
+        raise ImportError(
+            "backend 'ray' needs Ray; install it with: pip install 'tavc-env[ray]' "
+            "(or pip install ray)"
+        ) from error
+    started_here = not ray.is_initialized()
+    if started_here:
+        address = os.environ.get("RAY_ADDRESS")
+        if address:
+            ray.init(address=address, log_to_driver=False)
+        else:
+            # Job functions live in the installed package, so workers import them as we do.
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+    task = ray.remote(num_cpus=1, max_retries=0)(run)
+    pending = {task.remote(job): job for job in todo}
+
+    def collect(refs: Sequence[Any]) -> None:
+        for ref in refs:
+            job = pending.pop(ref)
+            try:
+                result = ray.get(ref)
+            except ray.exceptions.RayTaskError as error:
+                fail(job, error.as_instanceof_cause())
+            except ray.exceptions.RayError as error:
+                fail(job, error)
+            else:
+                finish(job, result, False)
+
+    try:
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            collect(done)
+    finally:
+        # Interrupted: save what is ready before cancelling the rest.
+        if pending:
+            ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=0)
+            with contextlib.suppress(Exception):
+                collect(ready)
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if started_here:
+            ray.shutdown()
+
+
+def rerun_failed(path: str | Path) -> TrialResult:
+    """Run again the trial recorded in a `<key>.failed.json` that a sweep wrote, in this process
+    (for debugging one failure), and save it beside, as `<key>.json`, if it now succeeds."""
+    data = read_failed(path)
+    record = {k: v for k, v in data["record"].items() if k != "arena"}
+    record["events"] = tuple(Event(**e) for e in record.get("events", ()))
+    spec = TrialSpec(**record)
+    result = run_spec(spec)
+    _save_trial(result, data["record"], Path(path).with_name(f"{spec.key}.json"))
+    return result
+
+
+def read_failed(path: str | Path) -> dict[str, Any]:
+    data: dict[str, Any] = json.loads(Path(path).read_text(encoding="utf-8"))
+    if data.get("unit") != "trial":
+        raise ValueError(
+            f"{path} records a failed {data.get('unit')!r}; allowed: a failed trial "
+            "(other jobs rerun by rerunning their command)"
+        )
+    return data
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        raise SystemExit("usage: python -m tavc_agents.experiments.sweep <key>.failed.json")
+    done = rerun_failed(sys.argv[1])
+    print(f"{done.label}: ran again without error and was saved beside {sys.argv[1]}")

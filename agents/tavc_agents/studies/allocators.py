@@ -1,0 +1,438 @@
+"""TAVC against the MRTA baselines the paper lacked, on `dahl2004` and a harder preset.
+
+Every allocator -- random, `stay` (keep the circuit the start gave), epsilon-greedy TAVC, softmax
+TAVC (the paper's three), static at the model optimum, greedy on the model's slot values, a
+MURDOCH / TraderBots-style auction, a Bonabeau-style response-threshold allocator, and every
+trained deep MARL network found for the preset (`--networks`: learning runs of `docs/examples`,
+in `--network-dir` (`benchmarks/results/marl/`) `<run>_<preset>/network.npz`, run greedily) --
+runs `--trials` trials per preset (default 10 x
+(15 h + 5 h measured), the paper's periods). Reported per allocator, with 95 % intervals over
+trials:
+
+* delivered value per robot per 10 s in the measured period (the paper's performance measure),
+  and as a fraction of the model optimum's predicted value (the tavc_model study);
+* the model value of the allocation itself (time-weighted over the measured period; the gap to the
+  delivered value is what switching and transients cost);
+* circuit switches per robot per hour;
+* the model value of the start's allocation (the reset's even spread, drawn from the seed, the same
+  for every allocator): how much of any allocator's score the reset hands it;
+* time to settle: the start of the first 2-hour window in which the mean model value of the current
+  allocation is within 3 % of its measured-period mean (never: `inf`).
+
+Outputs in `benchmarks/results/allocators/` (the committed reference; a run writes into a new `runs/` folder unless `--update-reference` or `--out`): `allocators.{md,csv,json}` (summary),
+`trials.csv` (every trial's measures, with the preset, allocator and seed that rebuild it),
+`allocators.png` (bar plot). Trials are kept under `cache/` as they finish (not committed), so an
+interrupted run resumes; `reproduce_rows` re-runs a sample of them against `trials.csv`.
+
+    python benchmarks/allocators.py
+    python benchmarks/allocators.py --quick       # a smoke run
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from tavc_agents.analysis import allocation
+from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
+from tavc_agents.analysis.stats import mean_ci, ratio_ci
+from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.sweep import TagValue, TrialSpec
+from tavc_agents.model import CompletionModel, SpeedClasses
+from tavc_agents.studies.common import (
+    RESULTS_DIR,
+    Outcome,
+    SweepOptions,
+    refuse_invalid,
+    run_trials,
+)
+from tavc_agents.studies.row_check import compare_rows, run_fresh, sample_rows
+from tavc_agents.studies.tavc_model import load_model, missing_model
+from tavc_env import make_config
+
+PresetName = Literal["dahl2004", "three_circuits_three_classes"]
+PRESETS: tuple[PresetName, ...] = ("dahl2004", "three_circuits_three_classes")
+NETWORK_RUNS = ("sb3_maskable_ppo", "torchrl_mappo", "rllib_ppo")
+SETTLE_BAND = 0.03
+SETTLE_WINDOW_H = 2
+TRIAL_MEASURES = (
+    "performance",
+    "fraction_of_optimum",
+    "allocation_value_fraction",
+    "start_value_fraction",
+    "switches_per_robot_h",
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(SweepOptions):
+    """The allocator comparison's settings (its command line)."""
+
+    presets: tuple[PresetName, ...] = PRESETS
+    """arena presets to compare on"""
+    trials: int = 10
+    """trials per allocator and preset (>= 2, for confidence intervals)"""
+    convergence_h: float = 15.0
+    """convergence period, simulated hours"""
+    measured_h: float = 5.0
+    """measured period, simulated hours"""
+    quick: bool = False
+    """smoke run: 2 trials of 1 h + 1 h"""
+    model: tuple[Path, ...] | None = None
+    """model.json per preset (default: the committed ones)"""
+    networks: tuple[str, ...] = NETWORK_RUNS
+    """learning runs whose trained network joins the comparison where one exists for the preset"""
+    network_dir: Path = RESULTS_DIR / "marl"
+    """where the learning runs are (`<run>_<preset>/network.npz`)"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        checks = [
+            ("presets", bool(self.presets) and set(self.presets) <= set(PRESETS), str(PRESETS)),
+            ("trials", _int(self.trials) and self.trials >= 2, "an integer >= 2"),
+            ("convergence_h", _finite(self.convergence_h) and self.convergence_h >= 0, ">= 0"),
+            ("measured_h", _finite(self.measured_h) and self.measured_h > 0, "> 0"),
+        ]
+        refuse_invalid(self, checks)
+        if self.model is not None and len(self.model) != len(self.presets):
+            raise ValueError(
+                f"model = {self.model!r} is invalid; allowed: one path per preset {self.presets}"
+            )
+        for preset, path in zip(self.presets, self.model_paths()):
+            problem = missing_model(preset, path)
+            if problem is not None:
+                raise ValueError(f"model = {path!r} is invalid; allowed: a model.json ({problem})")
+
+    def model_paths(self) -> list[Path | None]:
+        return list(self.model) if self.model is not None else [None] * len(self.presets)
+
+    def sized(self) -> Settings:
+        """These settings with `--quick`'s sizes applied."""
+        if not self.quick:
+            return self
+        return dataclasses.replace(self, trials=2, convergence_h=1.0, measured_h=1.0)
+
+    def reference_dir(self) -> Path:
+        return RESULTS_DIR / ("allocators_quick" if self.quick else "allocators")
+
+    def recorded(self) -> dict[str, Any]:
+        """What the report records as the settings (as text, as it always has)."""
+        s = self.sized()
+        return {
+            "presets": str(list(s.presets)),
+            "trials": str(s.trials),
+            "convergence_h": str(float(s.convergence_h)),
+            "measured_h": str(float(s.measured_h)),
+            "backend": s.backend,
+            "out": str(self.out_dir()),
+            "quick": str(s.quick),
+            "model": str(None if s.model is None else list(s.model)),
+            "networks": str(list(s.networks)),
+            "network_dir": str(s.network_dir),
+        }
+
+    def network_paths(self, preset: str) -> dict[str, Path]:
+        """The trained networks found for `preset`, by learning run."""
+        found = {run: self.network_dir / f"{run}_{preset}" / "network.npz" for run in self.networks}
+        return {run: path for run, path in found.items() if path.is_file()}
+
+
+def _int(x: int) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def _finite(x: float) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
+@dataclass(frozen=True)
+class Allocator:
+    name: str  # the row's name in trial keys, tables and trials.csv
+    label: str
+    kwargs: Mapping[str, Any]
+    registry: str = ""  # the allocator's registry name, if not `name`
+
+    @property
+    def allocator(self) -> str:
+        return self.registry or self.name
+
+
+def allocators(
+    model: CompletionModel, networks: Mapping[str, Path] | None = None
+) -> list[Allocator]:
+    """The allocators compared, in report order (the model-based ones get `model`; `networks`:
+    trained networks by learning run)."""
+    m = model.to_dict()
+    trained = [
+        Allocator(f"network_{run}", f"{run} (trained network)", {"weights": str(path)}, "network")
+        for run, path in (networks or {}).items()
+    ]
+    return [
+        Allocator("random", "random", {}),
+        Allocator("stay", "stay (the start's circuits)", {}),
+        Allocator("epsilon_tavc", "epsilon TAVC", {"epsilon": 0.1, "init": "scaled"}),
+        Allocator("softmax_tavc", "softmax TAVC", {"temperature": 0.005, "init": "scaled"}),
+        Allocator("response_threshold", "response threshold", {}),
+        Allocator("auction", "auction", {"model": m}),
+        Allocator("greedy", "greedy (model)", {"model": m}),
+        Allocator("static", "static (model optimum)", {"model": m}),
+        *trained,
+    ]
+
+
+def models(settings: Settings) -> dict[str, CompletionModel]:
+    """The model of each preset."""
+    return {p: load_model(p, path) for p, path in zip(settings.presets, settings.model_paths())}
+
+
+def trial_key(tags: Mapping[str, TagValue]) -> str:
+    return f"{tags['preset']}__{tags['allocator']}_s{tags['seed']}"
+
+
+def trial_spec(
+    settings: Settings, model: CompletionModel, preset: str, name: str, seed: int
+) -> TrialSpec:
+    """The trial of allocator `name` on `preset` with `seed` (tagged with the three)."""
+    s = settings.sized()
+    chosen = next(a for a in allocators(model, settings.network_paths(preset)) if a.name == name)
+    tags: dict[str, TagValue] = {"preset": preset, "allocator": name, "seed": seed}
+    return TrialSpec(
+        key=trial_key(tags),
+        allocator=chosen.allocator,
+        allocator_kwargs=chosen.kwargs,
+        seed=seed,
+        env_kwargs={"preset": preset},
+        convergence_s=s.convergence_h * 3600.0,
+        measured_s=s.measured_h * 3600.0,
+        tags=tags,
+    )
+
+
+def specs(settings: Settings, by_preset: Mapping[str, CompletionModel]) -> list[TrialSpec]:
+    """Every trial: preset by preset, allocator by allocator, seed 0 .. trials - 1."""
+    trials = settings.sized().trials
+    return [
+        trial_spec(settings, by_preset[p], p, a.name, seed)
+        for p in settings.presets
+        for a in allocators(by_preset[p], settings.network_paths(p))
+        for seed in range(trials)
+    ]
+
+
+def run(settings: Settings) -> Outcome:
+    """Run (or resume) every trial, then write the summary, the per-trial table and the plot."""
+    out = settings.out_dir()
+    by_preset = models(settings)
+    trial_specs = specs(settings, by_preset)
+    results, provenance = run_trials(trial_specs, out / "cache", settings, settings.recorded())
+    per_trial = trial_rows(trial_specs, results, by_preset)
+    summary: list[dict[str, Any]] = []
+    sections = []
+    for preset in settings.presets:
+        compared = allocators(by_preset[preset], settings.network_paths(preset))
+        rows = summarise([r for r in per_trial if r["preset"] == preset], compared)
+        summary += rows
+        sections.append(preset_section(rows, by_preset[preset], preset))
+    s = settings.sized()
+    body = (
+        f"{s.trials} trials per allocator and preset, {s.convergence_h:g} h convergence + "
+        f"{s.measured_h:g} h measured; mean [95 % CI] over trials.\n\n" + "\n\n".join(sections)
+    )
+    write_csv(out / "trials.csv", per_trial)
+    report = Report(
+        "allocators",
+        "Allocators compared",
+        body,
+        summary,
+        {"rows": summary},
+        figures=[("allocators.png", lambda path: plot(summary, path))],
+    )
+    written = [out / "trials.csv", *report.write(out, provenance)]
+    return Outcome(out, written, body)
+
+
+# -- measures ------------------------------------------------------------------------------------
+def measure(
+    result: TrialResult, model: CompletionModel, classes: SpeedClasses, optimum: float
+) -> dict[str, float]:
+    """One trial's measures; `optimum` is the model optimum's performance."""
+    t0, t1 = result.measured_window
+    perf = allocation.delivered_performance(result, t0, t1)
+    held = allocation.held_performance(result, model, classes, t0, t1)
+    return {
+        "performance": perf,
+        "fraction_of_optimum": perf / optimum,
+        "allocation_value_fraction": held / optimum,
+        "start_value_fraction": model.mean_performance(
+            result.initial_circuits, [], classes, 0.0, 1.0
+        )
+        / optimum,
+        "switches_per_robot_h": allocation.switches_per_robot_h(result, t0, t1),
+        "settle_h": allocation.settle_time_h(
+            result, model, classes, held, SETTLE_BAND, SETTLE_WINDOW_H
+        ),
+        "escapes": result.escapes,
+    }
+
+
+def trial_row(spec: TrialSpec, result: TrialResult, model: CompletionModel) -> dict[str, Any]:
+    """A trial's row of `trials.csv`: its preset, allocator and seed, then its measures."""
+    preset = str(spec.tags["preset"])
+    classes = SpeedClasses.of(make_config(preset))
+    optimum = model.performance(model.optimum())
+    head = {"preset": preset, "allocator": spec.tags["allocator"], "seed": spec.tags["seed"]}
+    return {**head, **measure(result, model, classes, optimum)}
+
+
+def trial_rows(
+    trial_specs: Sequence[TrialSpec],
+    results: Mapping[str, TrialResult],
+    by_preset: Mapping[str, CompletionModel],
+) -> list[dict[str, Any]]:
+    return [
+        trial_row(spec, results[spec.key], by_preset[str(spec.tags["preset"])])
+        for spec in trial_specs
+    ]
+
+
+def summarise(
+    rows: Sequence[Mapping[str, Any]], compared: Sequence[Allocator]
+) -> list[dict[str, Any]]:
+    """Per allocator (of one preset's trial rows): every measure's mean and 95 % interval, the
+    ratio to random, and the median settle time."""
+    preset = rows[0]["preset"]
+    by: dict[str, list[Mapping[str, Any]]] = {a.name: [] for a in compared}
+    for trial in rows:
+        by[trial["allocator"]].append(trial)
+    random_perf = [r["performance"] for r in by["random"]]
+    summary = []
+    for a in compared:
+        mine = by[a.name]
+        settle = np.array([r["settle_h"] for r in mine])
+        row: dict[str, Any] = {"preset": preset, "allocator": a.name, "label": a.label}
+        for key in TRIAL_MEASURES:
+            m, lo, hi, _ = mean_ci([r[key] for r in mine])
+            row.update({key: m, f"{key}_low": lo, f"{key}_high": hi})
+        ratio = ratio_ci([r["performance"] for r in mine], random_perf)
+        row.update(vs_random=ratio[0], vs_random_low=ratio[1], vs_random_high=ratio[2])
+        row.update(
+            settle_h_median=float(np.median(settle)),
+            settle_never=int(np.isinf(settle).sum()),
+            trials=len(mine),
+        )
+        summary.append(row)
+    return summary
+
+
+# -- the report ----------------------------------------------------------------------------------
+def _ci(row: Mapping[str, Any], key: str, digits: int) -> str:
+    return fmt_ci(row[key], row[f"{key}_low"], row[f"{key}_high"], digits)
+
+
+def preset_section(
+    summary: Sequence[Mapping[str, Any]], model: CompletionModel, preset: str
+) -> str:
+    optimum = model.optimum()
+    header = [
+        "allocator",
+        "value / robot / 10 s",
+        "fraction of optimum",
+        "allocation's model value",
+        "vs random",
+        "switches / robot / h",
+        "settle (h, median)",
+    ]
+    rows = [
+        [
+            r["label"],
+            _ci(r, "performance", 4),
+            _ci(r, "fraction_of_optimum", 3),
+            _ci(r, "allocation_value_fraction", 3),
+            _ci(r, "vs_random", 3),
+            f"{r['switches_per_robot_h']:.2f}",
+            settle_text(r),
+        ]
+        for r in summary
+    ]
+    described = " | ".join(f"c{i}: {model.describe(g)}" for i, g in enumerate(optimum))
+    start = summary[0]  # the same starts for every allocator (the same seeds)
+    return "\n".join(
+        [
+            f"### {preset}",
+            "",
+            f"Model optimum: {described} = {model.performance(optimum):.4f} per robot per 10 s.",
+            "The start's allocation (the reset spreads the robots evenly over the circuits, in an "
+            f"order drawn from the seed) is worth {_ci(start, 'start_value_fraction', 3)} of the "
+            "optimum by the model: that much of every allocator's score the reset hands it.",
+            "",
+            markdown_table(header, rows),
+        ]
+    )
+
+
+def settle_text(row: Mapping[str, Any]) -> str:
+    text = "never" if math.isinf(row["settle_h_median"]) else f"{row['settle_h_median']:.0f}"
+    if row["settle_never"]:
+        text += f" ({row['settle_never']}/{row['trials']} never)"
+    return text
+
+
+def plot(summary: Sequence[Mapping[str, Any]], path: Path) -> None:
+    """Delivered value and the allocation's model value, as fractions of the optimum, one panel
+    per preset."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    presets = list(dict.fromkeys(r["preset"] for r in summary))
+    fig, axes = plt.subplots(1, len(presets), figsize=(6 * len(presets), 4.2), sharey=True)
+    for ax, preset in zip(np.atleast_1d(axes), presets):
+        rows = [r for r in summary if r["preset"] == preset]
+        x = np.arange(len(rows))
+        mean = np.array([r["fraction_of_optimum"] for r in rows])
+        err = np.array(
+            [
+                [m - r["fraction_of_optimum_low"], r["fraction_of_optimum_high"] - m]
+                for m, r in zip(mean, rows)
+            ]
+        ).T
+        ax.bar(x, mean, yerr=err, capsize=3, color="tab:blue", alpha=0.8, label="delivered")
+        ax.plot(
+            x,
+            [r["allocation_value_fraction"] for r in rows],
+            "k_",
+            markersize=18,
+            label="model value of the allocation",
+        )
+        ax.set_xticks(x, [r["label"] for r in rows], rotation=35, ha="right")
+        ax.axhline(1.0, color="grey", lw=0.8, ls="--")
+        ax.set_title(preset)
+        ax.set_ylim(0.0, 1.05)
+    np.atleast_1d(axes)[0].set_ylabel("value per robot per 10 s / model optimum")
+    np.atleast_1d(axes)[0].legend(loc="lower left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, format="png")
+    plt.close(fig)
+
+
+# -- reproduction ----------------------------------------------------------------------------------
+def reproduce_rows(settings: Settings, sample: int, seed: int) -> list[tuple[str, bool]]:
+    """Re-run `sample` trials drawn at random (with `seed`) from the `trials.csv` in the settings'
+    output folder, from scratch, and compare each one's fresh row with the saved row, cell by
+    cell as written: (trial key, identical) per trial."""
+    saved = sample_rows(settings.out_dir() / "trials.csv", sample, seed)
+    by_preset = models(settings)
+    chosen = [
+        trial_spec(settings, by_preset[r["preset"]], r["preset"], r["allocator"], int(r["seed"]))
+        for r in saved
+    ]
+    fresh = run_fresh(chosen, settings.workers)
+    rows = [trial_row(s, fresh[s.key], by_preset[str(s.tags["preset"])]) for s in chosen]
+    return [(s.key, same) for s, same in zip(chosen, compare_rows(rows, saved))]

@@ -1,0 +1,345 @@
+"""Which physical arena gives crowding that costs fast and slow robots the same fraction of their
+time (elasticity e <= 1) while 3 + 3 stays the homogeneous equilibrium (t(4)/t(3) >= 1.1 at
+0.25 m/s)? A search over physical mechanisms only, measured with fixed allocations, no learning.
+The script is `benchmarks/congestion_design.py`.
+
+The candidates are `dahl2004` with
+* the clearance governor (`clearance_governor_m`, see `tavc_env.engine.navigation`) off or over
+  0.56, 1.06, 1.56 or 2.56 m of clearance, the sensing range raised to hold it (a longer-range
+  laser: sensing = governor + 2 radii, at least the preset's 1 m);
+* the source's loading time 4, 20 (the preset's) or 40 s: fixed handling time that every robot
+  spends alike dilutes the part of a task that crowding stretches.
+
+The rule, fixed before any candidate was measured: the arena shipped as `dahl2004_congestion` is
+the candidate with the lowest e among those whose knee t(4)/t(3) is at least `knee` (point
+estimates); if none of them reaches e <= 1, it is still that candidate, shipped as the closest,
+and the report shows the frontier (the lowest e at each knee). No learning result enters.
+
+The first search (`--search governor_loading`, the 15 candidates above) reached no e <= 1 and
+chose `gov2.56_load40`. A second search (`--search bays`) adds the mechanism the first lacked:
+stations with several bays (`station_bays`), which turn the loading time into handling time that
+robots do not queue for, the one ingredient the physics-free model says gives e < 1 (fixed
+handling time plus congestion in travel). Its candidates: 2 or 3 bays x governor off, 1.06 or
+2.56 m x loading 20 or 40 s. Its rule, fixed before any of its candidates was measured: if a
+candidate reaches e <= 1 with the knee, the lowest-e such candidate replaces the first search's
+choice as `dahl2004_congestion` (which then stays in the regime map as another arena); if none
+does, `dahl2004_congestion` stays, and the candidate with the lowest e, knee or not, joins the
+regime map as `dahl2004_bays`: a physical point as far below e = 1 as this search reaches, to
+test the model's prediction on both sides of 1.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from tavc_agents.analysis import interference as ia
+from tavc_agents.analysis.elasticity import Elasticity, elasticity, seed_tables
+from tavc_agents.analysis.reports import Report, markdown_table
+from tavc_agents.analysis.stats import ratio_ci
+from tavc_agents.experiments.measurement import two_circuit_allocation
+from tavc_agents.experiments.provenance import run_recorded
+from tavc_agents.studies import interference as study
+from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.elasticity import BOOT_SEED, elasticity_jobs
+from tavc_env import ArenaConfig, make_config
+
+GOVERNORS_M = (0.0, 0.56, 1.06, 1.56, 2.56)
+LOADING_S = (4.0, 20.0, 40.0)
+HOMOG_SPEED = 0.25
+Row = dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One arena of the search: `dahl2004` with these overrides."""
+
+    governor_m: float
+    loading_s: float
+    bays: int = 1
+
+    @property
+    def name(self) -> str:
+        bays = f"_bays{self.bays}" if self.bays > 1 else ""
+        return f"gov{self.governor_m:g}_load{self.loading_s:g}{bays}"
+
+    def overrides(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"source_service_s": self.loading_s}
+        if self.bays > 1:
+            out["station_bays"] = self.bays
+        if self.governor_m > 0:
+            out["clearance_governor_m"] = self.governor_m
+            out["sensing_range_m"] = max(1.0, round(self.governor_m + 2 * 0.22, 2))
+        return out
+
+    def config(self) -> ArenaConfig:
+        return make_config("dahl2004", **self.overrides())
+
+
+CANDIDATES = tuple(Candidate(g, load) for g in GOVERNORS_M for load in LOADING_S)
+BAYS_CANDIDATES = tuple(
+    Candidate(g, load, bays) for bays in (2, 3) for g in (0.0, 1.06, 2.56) for load in (20.0, 40.0)
+)
+SEARCHES = {"governor_loading": CANDIDATES, "bays": BAYS_CANDIDATES}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(SweepOptions):
+    """The design search's settings (its command line)."""
+
+    seeds: int = 3
+    """seeds per candidate"""
+    hours: float = 2.0
+    """simulated hours per run"""
+    knee: float = 1.1
+    """the least t(4)/t(3) a candidate must reach (3 + 3 stays the homogeneous equilibrium)"""
+    search: Literal["governor_loading", "bays"] = "governor_loading"
+    """which search: the first (clearance governor x loading time) or the second (station bays x
+    governor x loading time)"""
+    quick: bool = False
+    """2 seeds x 0.4 h and three candidates (smoke run)"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        checks = [
+            ("seeds", isinstance(self.seeds, int) and self.seeds >= 2, "an integer >= 2"),
+            ("hours", math.isfinite(self.hours) and self.hours > 0, "> 0"),
+            ("knee", math.isfinite(self.knee) and self.knee >= 1, ">= 1"),
+        ]
+        refuse_invalid(self, checks)
+
+    def sized(self) -> Settings:
+        return replace(self, seeds=2, hours=0.4) if self.quick else self
+
+    def candidates(self) -> tuple[Candidate, ...]:
+        candidates = SEARCHES[self.search]
+        return candidates[::6] if self.quick else candidates
+
+    def reference_dir(self) -> Path:
+        suffix = "" if self.search == "governor_loading" else f"_{self.search}"
+        return RESULTS_DIR / f"congestion_design{suffix}"
+
+    def recorded(self) -> dict[str, Any]:
+        s = self.sized()
+        return {
+            "seeds": str(s.seeds),
+            "hours": str(s.hours),
+            "knee": str(s.knee),
+            "candidates": str([c.name for c in s.candidates()]),
+            "quick": str(s.quick),
+        }
+
+
+def knee_jobs(c: Candidate, seeds: Sequence[int], hours: float) -> list[study.Job]:
+    """Homogeneous 0.25 m/s runs with 3 and 4 robots on circuit 0 (the rest on circuit 1)."""
+    arena = tuple(sorted(c.overrides().items()))
+    return [
+        study.Job(
+            experiment="t_n",
+            preset="dahl2004",
+            circuit_of=two_circuit_allocation(n),
+            seed=seed,
+            hours=hours,
+            warmup_s=600.0,
+            skip_first=2,
+            speeds=(HOMOG_SPEED,) * 6,
+            label=f"{c.name}_{ia.t_n_label(n)}",
+            arena=arena,
+        )
+        for seed in seeds
+        for n in (3, 4)
+    ]
+
+
+def cross_jobs(c: Candidate, seeds: Sequence[int], hours: float) -> list[study.Job]:
+    jobs = elasticity_jobs(c.config(), seeds, hours, 10.0, 2)
+    return [replace(j, label=f"{c.name}_{j.label}") for j in jobs]
+
+
+def _t_n(rows: Sequence[Row], n: int) -> list[float]:
+    """Per seed, the mean own-task time on circuit 0 with n robots there."""
+    return [
+        float(r["mean_task_time_s"])
+        for r in rows
+        if r["experiment"] == "t_n"
+        and r["circuit"] == 0
+        and r["n_on_circuit"] == n
+        and r["robot_class"] == "all"
+        and r["task_kind"] == "own"
+    ]
+
+
+def assess(c: Candidate, rows: Sequence[Row], seeds: Sequence[int]) -> Row:
+    """A candidate's e [CI], t(3), t(4) and knee t(4)/t(3) [CI]."""
+    cross = [dict(r, label=r["label"].removeprefix(f"{c.name}_")) for r in rows]
+    e: Elasticity = elasticity(seed_tables(cross, seeds), np.random.default_rng(BOOT_SEED))
+    t3, t4 = _t_n(rows, 3), _t_n(rows, 4)
+    knee, low, high = ratio_ci(t4, t3)
+    return {
+        "candidate": c.name,
+        "governor_m": c.governor_m,
+        "sensing_m": c.config().sensing_range_m,
+        "loading_s": c.loading_s,
+        "bays": c.bays,
+        "e": e.e,
+        "e_low": e.low,
+        "e_high": e.high,
+        "t3_s": float(np.mean(t3)),
+        "t4_s": float(np.mean(t4)),
+        "knee": knee,
+        "knee_low": low,
+        "knee_high": high,
+    }
+
+
+def choose(rows: Sequence[Row], knee: float) -> Row | None:
+    """The rule of the module docstring: the lowest e among candidates with knee >= `knee`."""
+    eligible = [r for r in rows if r["knee"] >= knee and math.isfinite(r["e"])]
+    return min(eligible, key=lambda r: r["e"]) if eligible else None
+
+
+def frontier(rows: Sequence[Row]) -> list[Row]:
+    """The candidates no other beats on both counts (lower e and higher knee)."""
+    return sorted(
+        (
+            r
+            for r in rows
+            if not any(o["e"] < r["e"] and o["knee"] > r["knee"] for o in rows if o is not r)
+        ),
+        key=lambda r: r["knee"],
+    )
+
+
+RULES = {
+    "governor_loading": "The rule (fixed before measuring): lowest e among candidates with "
+    "t(4)/t(3) >= {knee}.",
+    "bays": "The rule (fixed before measuring): if candidates reach e <= 1 with t(4)/t(3) >= "
+    "{knee}, the lowest-e of them becomes `dahl2004_congestion`; otherwise the lowest-e candidate "
+    "joins the regime map as `dahl2004_bays`.",
+}
+
+
+def report_body(rows: Sequence[Row], chosen: Row | None, s: Settings) -> str:
+    def ci(r: Row, key: str) -> str:
+        return f"{r[key]:.3f} [{r[key + '_low']:.3f}, {r[key + '_high']:.3f}]"
+
+    table = markdown_table(
+        [
+            "candidate",
+            "governor m",
+            "sensing m",
+            "loading s",
+            "e [95% CI]",
+            "t(3) s",
+            "t(4) s",
+            "t(4)/t(3) [95% CI]",
+            "frontier",
+        ],
+        [
+            [
+                r["candidate"],
+                f"{r['governor_m']:g}",
+                f"{r['sensing_m']:g}",
+                f"{r['loading_s']:g}",
+                ci(r, "e"),
+                f"{r['t3_s']:.1f}",
+                f"{r['t4_s']:.1f}",
+                ci(r, "knee"),
+                "yes" if r in frontier(rows) else "",
+            ]
+            for r in rows
+        ],
+    )
+    reached = [r for r in rows if r["e"] <= 1.0 and r["knee"] >= s.knee]
+    lowest = min(rows, key=lambda r: r["e"])
+    if s.search == "bays" and not reached:
+        verdict = (
+            f"**No candidate reaches e <= 1 together with t(4)/t(3) >= {s.knee}**, so "
+            "`dahl2004_congestion` stays the first search's choice. By the rule, the lowest-e "
+            f"candidate, **{lowest['candidate']}** (e = {ci(lowest, 'e')}, t(4)/t(3) = "
+            f"{ci(lowest, 'knee')}), joins the regime map as `dahl2004_bays`."
+        )
+    elif s.search == "bays":
+        assert chosen is not None
+        verdict = (
+            f"**{chosen['candidate']} reaches e <= 1 with the knee**: e = {ci(chosen, 'e')}, "
+            f"t(4)/t(3) = {ci(chosen, 'knee')}. By the rule it becomes `dahl2004_congestion`."
+        )
+    elif chosen is None:
+        verdict = f"No candidate reaches t(4)/t(3) >= {s.knee}; nothing is chosen."
+    elif reached:
+        verdict = (
+            f"**Chosen: {chosen['candidate']}**, e = {ci(chosen, 'e')}, t(4)/t(3) = "
+            f"{ci(chosen, 'knee')}: it reaches e <= 1 with the knee."
+        )
+    else:
+        verdict = (
+            f"**No candidate reaches e <= 1 together with t(4)/t(3) >= {s.knee}.** The closest, "
+            f"shipped by the rule, is **{chosen['candidate']}**: e = {ci(chosen, 'e')}, "
+            f"t(4)/t(3) = {ci(chosen, 'knee')}. The frontier column marks the candidates no other "
+            "beats on both counts."
+        )
+    return "\n".join(
+        [
+            "## Verdict",
+            "",
+            verdict,
+            "",
+            "## Method",
+            "",
+            f"{len(rows)} candidates (`dahl2004` with the overrides named), {s.seeds} seeds x "
+            f"{s.hours:g} h per run. e: the interference study's cross runs (f fast 0.30 m/s and "
+            "s slow 0.20 m/s robots on circuit 0, the rest on circuit 1), its percentile "
+            "bootstrap over seeds. Knee: homogeneous 0.25 m/s runs with 3 and 4 robots on "
+            "circuit 0, ratio of seed means with a delta-method interval. "
+            + RULES[s.search].format(knee=s.knee),
+            "",
+            "## Candidates",
+            "",
+            table,
+            "",
+        ]
+    )
+
+
+def run(settings: Settings) -> Outcome:
+    s = settings.sized()
+    out = s.out_dir()
+    seeds = list(range(s.seeds))
+    jobs = [j for c in s.candidates() for j in knee_jobs(c, seeds, s.hours)]
+    jobs += [j for c in s.candidates() for j in cross_jobs(c, seeds, s.hours)]
+    results, provenance = run_recorded(
+        jobs,
+        study.RUNS,
+        out / "runs",
+        out,
+        s.recorded(),
+        workers=s.workers,
+        backend=s.backend,
+        wall_of=lambda result: 0.0,
+    )
+    rows = []
+    for c in s.candidates():
+        mine = [
+            r
+            for j in jobs
+            if j.label.startswith(f"{c.name}_")
+            for r in results[study.job_key(j)]["rows"]
+        ]
+        rows.append(assess(c, mine, seeds))
+    chosen = choose(rows, s.knee)
+    body = report_body(rows, chosen, s)
+    report = Report(
+        name="congestion_design",
+        title="Congestion arena design",
+        body=body,
+        rows=rows,
+        summary={"chosen": chosen, "frontier": [r["candidate"] for r in frontier(rows)]},
+    )
+    written = report.write(out, provenance)
+    return Outcome(out, written, body.split("## Method")[0])
