@@ -184,6 +184,12 @@ class ArenaConfig:
     # stand `queue_spacing_m` apart along the queue direction, a loading bank along the wall,
     # and the line starts `queue_offset_m` beyond the last (see tavc_env.layout).
     station_bays: int = 1
+    # True: robots overtake slower ones as laser-based avoidance does. The governor measures the
+    # clearance only to robots in the robot's own path (not to one it passes alongside), and a
+    # robot dead ahead is passed on the side the walls leave room on (tavc_env.engine.navigation).
+    # False (the shipped presets but dahl2004_passing): the governor slows a robot for anything in
+    # its front half-plane, so passing needs a wide berth.
+    overtaking: bool = False
 
     def __post_init__(self) -> None:
         for name, kind in (
@@ -231,12 +237,9 @@ class ArenaConfig:
                 value,
                 f"a side of at most {MAX_ARENA_SIDE_M:g} m (positions are floats)",
             )
-        require(
-            isinstance(self.service_scales_with_speed, bool),
-            "service_scales_with_speed",
-            self.service_scales_with_speed,
-            "True or False",
-        )
+        for name in ("service_scales_with_speed", "overtaking"):
+            value = getattr(self, name)
+            require(isinstance(value, bool), name, value, "True or False")
         for name in ("source_service_s", "sink_service_s"):
             value = getattr(self, name)
             require(is_number(value) and value >= 0, name, value, "a finite time >= 0 s")

@@ -20,6 +20,13 @@ scanner's 180-degree field sees). This is how the laser-based obstacle-avoidance
 Pioneer robots slow down in a crowd: every robot loses the same *fraction* of its own top speed
 at a given clearance, whatever that top speed is, so crowding in travel is multiplicative.
 
+*Overtaking* (`ArenaConfig.overtaking`, off by default) changes two things, as a laser-based
+avoidance that passes slower traffic does: the governor measures the clearance only to robots in
+the robot's own path (ahead, inside the corridor its body sweeps), not to a robot it is passing
+alongside; and a robot dead ahead is passed on the side with room (the right unless the wall
+leaves less room there than on the left). The robot then returns to its line by the pull of its
+target. Every robot is treated alike; only its top speed differs.
+
 The per-tick loop over robot pairs is one function, compiled by numba when it is installed (the
 physics loop calls it every 0.1 s of simulated time, so interpreted Python would dominate the run
 time); without numba the same function runs as plain Python.
@@ -103,6 +110,7 @@ class SteerArgs(NamedTuple):
     radius: float
     sensing: float
     governor: float  # clearance (m) below which speed is governed; 0: no governor
+    overtaking: bool  # governor sees only the robot's own path; dead-ahead robots passed on the roomier side
     turn_step: float  # largest heading change per tick
     width: float
     height: float
@@ -117,6 +125,23 @@ def _clip(x: float, lo: float, hi: float) -> float:
 _clip_c = _compile(_clip)
 
 
+def _wall_room(x: float, y: float, nx: float, ny: float, width: float, height: float) -> float:
+    """How far from (x, y) along the unit vector (nx, ny) the nearest wall is."""
+    room = math.inf
+    if nx > 0.0:
+        room = (width - x) / nx
+    elif nx < 0.0:
+        room = x / -nx
+    if ny > 0.0:
+        room = min(room, (height - y) / ny)
+    elif ny < 0.0:
+        room = min(room, y / -ny)
+    return room
+
+
+_wall_room_c = _compile(_wall_room)
+
+
 def _steer_one(
     i: int,
     pos: np.ndarray,
@@ -128,6 +153,7 @@ def _steer_one(
     radius: float,
     sensing: float,
     governor: float,
+    overtaking: bool,
     turn_step: float,
     width: float,
     height: float,
@@ -141,6 +167,7 @@ def _steer_one(
     corridor = 2.0 * radius + CORRIDOR_MARGIN_M
     near = 2.0 * radius + KEEP_APART_MARGIN_M
     contact = 2.0 * radius
+    pass_room = radius + contact + CORRIDOR_MARGIN_M  # beside a robot's centre, to pass it
     wall_lo = radius + WALL_RANGE_M
     px = pos[i, 0]
     py = pos[i, 1]
@@ -169,7 +196,17 @@ def _steer_one(
         if ahead > 0.0 and abs(lateral) < corridor and dist < sensing and dist < gdist:
             w = _clip_c((sensing - dist) / (sensing - contact), 0.0, 1.0)
             w *= 1.0 - abs(lateral) / corridor
-            steer += -w if lateral < 0.0 else w
+            left = lateral < 0.0  # away from it; dead ahead: to the right
+            if overtaking and abs(lateral) < radius:
+                # nearly dead ahead: pass on the other side if the wall leaves too little room
+                # beside it on this one and more on that one
+                room_left = _wall_room_c(pos[j, 0], pos[j, 1], -uy, ux, width, height)
+                room_right = _wall_room_c(pos[j, 0], pos[j, 1], uy, -ux, width, height)
+                room = room_left if left else room_right
+                other = room_right if left else room_left
+                if room < pass_room and other > room:
+                    left = not left
+            steer += -w if left else w
         if dist < near:
             overlap = min((near - dist) / KEEP_APART_MARGIN_M, 2.0)
             inv = overlap / max(dist, 1e-9)
@@ -205,7 +242,7 @@ def _steer_one(
         across = abs(hx * dy - hy * dx)
         if along > 0.0 and across < contact:
             free = min(free, along - math.sqrt(contact * contact - across * across))
-        if along > 0.0:
+        if along > 0.0 and (not overtaking or across < corridor):
             clearance = min(clearance, math.sqrt(dx * dx + dy * dy) - contact)
     speed *= _clip_c((free - BRAKE_GAP_M) / BRAKE_DISTANCE_M, 0.0, 1.0)
     if governor > 0.0 and clearance < governor:
@@ -228,6 +265,7 @@ def _steer_all(
     radius: float,
     sensing: float,
     governor: float,
+    overtaking: bool,
     turn_step: float,
     width: float,
     height: float,
@@ -249,6 +287,7 @@ def _steer_all(
             radius,
             sensing,
             governor,
+            overtaking,
             turn_step,
             width,
             height,
@@ -293,6 +332,7 @@ def _steer_all_grid(
     radius: float,
     sensing: float,
     governor: float,
+    overtaking: bool,
     turn_step: float,
     width: float,
     height: float,
@@ -360,6 +400,7 @@ def _steer_all_grid(
             radius,
             sensing,
             governor,
+            overtaking,
             turn_step,
             width,
             height,
@@ -462,6 +503,7 @@ class Navigator:
         self.radius = config.robot_radius
         self.sensing = config.sensing_range_m
         self.governor = config.clearance_governor_m
+        self.overtaking = config.overtaking
         self.turn_step = config.max_turn_rate * config.dt
         self.width = config.width
         self.height = config.height

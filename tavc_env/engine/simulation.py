@@ -290,6 +290,7 @@ class Simulation:
             radius=nav.radius,
             sensing=nav.sensing,
             governor=nav.governor,
+            overtaking=nav.overtaking,
             turn_step=nav.turn_step,
             width=nav.width,
             height=nav.height,

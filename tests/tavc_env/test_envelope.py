@@ -178,8 +178,8 @@ def test_where_a_sensing_range_of_two_radii_divided_by_zero() -> None:
     )
     out = (12.0, 8.0, np.zeros((2, 2)), np.zeros(2))
     with pytest.raises(ZeroDivisionError):
-        steer_all(*args, 0.44, 0.0, 0.175, *out)
-    steer_all(*args, MIN_SENSING_OVER_RADIUS * 0.22, 0.0, 0.175, *out)
+        steer_all(*args, 0.44, 0.0, False, 0.175, *out)
+    steer_all(*args, MIN_SENSING_OVER_RADIUS * 0.22, 0.0, False, 0.175, *out)
 
 
 # -- arena size --------------------------------------------------------------------------------

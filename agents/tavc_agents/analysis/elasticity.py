@@ -12,6 +12,15 @@ e > 1: fast robots lose more (an additive wait is a larger share of a shorter ta
 robots lose more. The means run over the nine cells where both classes share the circuit; each
 class is compared with itself alone on it.
 
+Beside e, the pace in company
+
+    rho = T_slow(1, 1) / T_fast(1, 1)
+
+says whether a fast robot keeps its speed advantage when it shares the circuit with one slow robot:
+rho = 1 means it is held to the slow robot's pace (behind it at a one-robot dock, or braking
+behind it on a leg it cannot pass on), and rho = T_slow(0, 1) / T_fast(1, 0), the ratio alone, is
+its ceiling. Its interval is the same seed bootstrap, drawn after e's.
+
 Over seeds: the point estimate is e of the tables averaged cell by cell over seeds; its interval
 is a percentile bootstrap that resamples whole seeds (each seed's runs together) and recomputes
 that estimate (`scipy.stats.bootstrap`, method "percentile"). With few seeds the bootstrap cannot
@@ -23,7 +32,7 @@ from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -58,13 +67,27 @@ class Elasticity:
     slow_mean_log_ratio: float
     """mean ln(T_slow(f, s) / T_slow(0, 1))"""
     confidence: float = 0.95
+    rho: float = math.nan
+    """pace in company, T_slow(1, 1) / T_fast(1, 1), of the tables averaged over seeds"""
+    rho_low: float = math.nan
+    rho_high: float = math.nan
+    rho_alone: float = math.nan
+    """T_slow(0, 1) / T_fast(1, 0): rho's ceiling, the two classes' ratio alone on the circuit"""
 
     def text(self, digits: int = 3) -> str:
         """The text "e [low, high]" (the interval left out where there is none)."""
-        e = f"{self.e:.{digits}f}"
-        if math.isfinite(self.low) and math.isfinite(self.high):
-            return f"{e} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
-        return e
+        return _with_interval(self.e, self.low, self.high, digits)
+
+    def rho_text(self, digits: int = 3) -> str:
+        """The text "rho [low, high]" (the interval left out where there is none)."""
+        return _with_interval(self.rho, self.rho_low, self.rho_high, digits)
+
+
+def _with_interval(value: float, low: float, high: float, digits: int) -> str:
+    text = f"{value:.{digits}f}"
+    if math.isfinite(low) and math.isfinite(high):
+        return f"{text} [{low:.{digits}f}, {high:.{digits}f}]"
+    return text
 
 
 def seed_tables(rows: Sequence[Row], seeds: Iterable[int] | None = None) -> dict[int, Tables]:
@@ -160,18 +183,27 @@ def _e_of_seeds(fast: np.ndarray, slow: np.ndarray) -> Any:
     return _quotient(_mean_log_ratio(fast.mean(axis=-2)), _mean_log_ratio(slow.mean(axis=-2)))
 
 
+_PAIR = 1 + CROWDED.index((1, 1))  # the column of cell (1, 1) in `_column`'s order (alone first)
+
+
+def _rho_of_seeds(fast: np.ndarray, slow: np.ndarray) -> Any:
+    """rho of the tables averaged over seeds; arrays (..., seeds, cells)."""
+    return slow.mean(axis=-2)[..., _PAIR] / fast.mean(axis=-2)[..., _PAIR]
+
+
 def _bootstrap(
+    of_seeds: Callable[[np.ndarray, np.ndarray], Any],
     fast: np.ndarray,
     slow: np.ndarray,
     rng: np.random.Generator,
     confidence: float,
     n_resamples: int,
 ) -> tuple[float, float]:
-    """Percentile bootstrap of `_e_of_seeds`, resampling seeds with replacement (a seed's cells
-    stay together: the resampled objects are seed indices)."""
+    """Percentile bootstrap of `of_seeds` (`_e_of_seeds` or `_rho_of_seeds`), resampling seeds
+    with replacement (a seed's cells stay together: the resampled objects are seed indices)."""
 
     def statistic(index: np.ndarray, axis: int = -1) -> Any:
-        return _e_of_seeds(fast[index], slow[index])  # index: (..., seeds)
+        return of_seeds(fast[index], slow[index])  # index: (..., seeds)
 
     kwargs: dict[str, Any] = (
         {"rng": rng}
@@ -206,8 +238,15 @@ def elasticity(
         raise ValueError(f"n_resamples = {n_resamples!r} is invalid; allowed: an integer >= 1")
     fast, slow = _arrays(per_seed)
     n = len(fast)
+    no_interval = (math.nan, math.nan)
+    # e's interval first: the draws for rho come after, so e's interval does not depend on them
     low, high = (
-        _bootstrap(fast, slow, rng, confidence, n_resamples) if n >= 2 else (math.nan, math.nan)
+        _bootstrap(_e_of_seeds, fast, slow, rng, confidence, n_resamples) if n >= 2 else no_interval
+    )
+    rho_low, rho_high = (
+        _bootstrap(_rho_of_seeds, fast, slow, rng, confidence, n_resamples)
+        if n >= 2
+        else no_interval
     )
     return Elasticity(
         e=float(_e_of_seeds(fast, slow)),
@@ -217,4 +256,8 @@ def elasticity(
         fast_mean_log_ratio=float(_mean_log_ratio(fast.mean(axis=0))),
         slow_mean_log_ratio=float(_mean_log_ratio(slow.mean(axis=0))),
         confidence=confidence,
+        rho=float(_rho_of_seeds(fast, slow)),
+        rho_low=rho_low,
+        rho_high=rho_high,
+        rho_alone=float(slow[:, 0].mean() / fast[:, 0].mean()),
     )

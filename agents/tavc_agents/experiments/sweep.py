@@ -131,7 +131,7 @@ def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
 # Fields added to ArenaConfig after trial records began to carry digests. Each is neutral at its
 # default (the arena behaves as before it existed), so it enters the digest only when it is set:
 # trials stored before it came keep their digest and are resumed.
-FIELDS_SINCE_DIGESTS = ("clearance_governor_m", "station_bays")
+FIELDS_SINCE_DIGESTS = ("clearance_governor_m", "station_bays", "overtaking")
 
 
 def digest_text(config: ArenaConfig) -> str:

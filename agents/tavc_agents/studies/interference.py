@@ -290,6 +290,19 @@ def elasticity_rows(el: ea.Elasticity, preset: str) -> list[Row]:
             **about,
             robot_class="slow",
         ),
+        ia.summary_row(
+            "elasticity",
+            "pace in company rho = T_slow(1,1)/T_fast(1,1) (percentile bootstrap 95% interval "
+            "over seeds)",
+            (el.rho, el.rho_low, el.rho_high, n),
+            **about,
+        ),
+        ia.summary_row(
+            "elasticity",
+            "rho's ceiling T_slow(0,1)/T_fast(1,0), the ratio alone",
+            (el.rho_alone, math.nan, math.nan, n),
+            **about,
+        ),
     ]
 
 
@@ -645,7 +658,18 @@ def elasticity_lines(f: Findings) -> list[str]:
         f"{fast:.3f} for a fast robot (its task time x{math.exp(fast):.2f} on average over the "
         f"shared cells) and {slow:.3f} for a slow one (x{math.exp(slow):.2f}). e = 1: crowding "
         "costs every robot the same fraction of its time; e > 1: fast robots lose more.",
+        "",
+        f"**Pace in company rho = {el.rho_text()}** (same bootstrap): T_slow(1,1) / T_fast(1,1), "
+        "a slow robot's task time over a fast one's when one of each serves circuit 0. Alone the "
+        f"ratio is {el.rho_alone:.3f}, rho's ceiling; rho = 1 means the fast robot works at the "
+        f"slow robot's pace. Here the fast robot keeps {_kept(el):.0%} of its advantage.",
     ]
+
+
+def _kept(el: ea.Elasticity) -> float:
+    """How much of its speed advantage alone a fast robot keeps in company: (rho - 1) / (rho
+    alone - 1)."""
+    return (el.rho - 1.0) / (el.rho_alone - 1.0)
 
 
 def summary(f: Findings, jobs: Sequence[Job]) -> dict[str, Any]:
@@ -679,7 +703,14 @@ def elasticity_summary(f: Findings) -> dict[str, Any]:
             "n_seeds": el.n_seeds,
             "fast_mean_log_ratio": el.fast_mean_log_ratio,
             "slow_mean_log_ratio": el.slow_mean_log_ratio,
-        }
+        },
+        "pace_in_company": {
+            "rho": el.rho,
+            "ci95_low": el.rho_low,
+            "ci95_high": el.rho_high,
+            "interval": "percentile bootstrap over seeds, drawn after e's",
+            "alone": el.rho_alone,
+        },
     }
 
 

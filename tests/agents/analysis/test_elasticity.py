@@ -73,6 +73,33 @@ def test_additive_waits_cost_fast_robots_more() -> None:
     assert e == pytest.approx(_expected(_additive), rel=1e-12)
 
 
+def _held_to_slow_pace(cls: str, f: int, s: int) -> float:
+    # with a slow robot on the circuit every robot works at the slow robot's pace
+    return BASE["slow" if s else cls] * (1.0 + 0.1 * (f + s - 1))
+
+
+def test_pace_in_company_is_one_when_the_fast_robot_is_held_back() -> None:
+    held = ea.elasticity([_tables(_held_to_slow_pace)] * 3, np.random.default_rng(0))
+    assert held.rho == pytest.approx(1.0, rel=1e-12)
+    assert held.rho_alone == pytest.approx(BASE["slow"] / BASE["fast"], rel=1e-12)
+    free = ea.elasticity([_tables(_multiplicative)] * 3, np.random.default_rng(0))
+    assert free.rho == pytest.approx(free.rho_alone, rel=1e-12)  # crowding costs both alike
+    assert free.rho_text(2) == "1.50 [1.50, 1.50]"
+
+
+def test_pace_interval_is_drawn_after_e_so_e_is_unchanged() -> None:
+    rng = np.random.default_rng(3)
+    noisy = [_tables(lambda c, f, s, k=k: _additive(c, f, s) * (1 + 0.03 * k)) for k in range(4)]
+    for k, t in enumerate(noisy):
+        t.slow[(1, 1)] *= 1 + 0.05 * (k % 2)  # some spread in rho too
+    el = ea.elasticity(noisy, rng, n_resamples=300)
+    low, high = ea._bootstrap(
+        ea._e_of_seeds, *ea._arrays(noisy), np.random.default_rng(3), 0.95, 300
+    )
+    assert (el.low, el.high) == (low, high)
+    assert el.rho_low < el.rho < el.rho_high
+
+
 def test_waits_growing_with_slowness_cost_slow_robots_more() -> None:
     e = ea.elasticity_of(_tables(_slow_lose_more))
     assert e < 0.8

@@ -123,8 +123,9 @@ def test_grid_neighbour_search_gives_exactly_the_all_pairs_commands() -> None:
         b_v, b_h = np.zeros((n, 2)), np.zeros(n)
         # every other trial with the clearance governor at its largest allowed range
         governor = (sensing - 2 * radius) * (trial % 2)
+        overtaking = trial % 4 >= 2  # and overtaking on in half of each
         common = (pos, heading, target, moving, speed, present, radius, sensing, governor)
-        common += (turn, w, h)
+        common += (overtaking, turn, w, h)
         steer_all(*common, a_v, a_h)
         steer_all_grid(*common, b_v, b_h, cell)
         assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), trial

@@ -28,6 +28,7 @@ def command_speed(top_speed: float, other_at: tuple[float, float], governor: flo
         0.22,  # radius
         1.5,  # sensing
         governor,
+        False,  # overtaking
         1.75 * 0.1,  # turn step
         12.0,
         8.0,
