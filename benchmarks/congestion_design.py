@@ -6,10 +6,12 @@ docstring (`tavc_agents.studies.congestion_design`).
 
 Writes `congestion_design.{md,csv,json}` and every run (`runs/`) into a new run folder under
 runs/ (git ignores it), `--out`, or with `--update-reference` benchmarks/results/congestion_design/
-(congestion_design_bays/ for the second search); `--resume RUN_DIR` continues an interrupted run.
+(congestion_design_bays/ for the second search, congestion_design_passing/ for the third);
+`--resume RUN_DIR` continues an interrupted run.
 
     python benchmarks/congestion_design.py                 # 15 candidates x 3 seeds x 2 h
     python benchmarks/congestion_design.py --search bays   # the second search: 12 candidates
+    python benchmarks/congestion_design.py --search passing  # the third: 18 candidates x 5 seeds
     python benchmarks/congestion_design.py --quick         # smoke run
 """
 

@@ -61,3 +61,38 @@ def test_the_bays_search_is_valid_and_keeps_the_first_search_s_names() -> None:
     assert s.candidates() == design.BAYS_CANDIDATES
     assert s.reference_dir().name == "congestion_design_bays"
     assert design.Settings().reference_dir().name == "congestion_design"
+
+
+def test_the_passing_search_is_valid_and_keeps_the_other_searches_names() -> None:
+    assert len(design.PASSING_CANDIDATES) == 18
+    names = {c.name for c in design.PASSING_CANDIDATES}
+    assert len(names) == 18 and all(n.endswith("_pass") for n in names)
+    assert not names & {c.name for c in design.CANDIDATES + design.BAYS_CANDIDATES}
+    for c in design.PASSING_CANDIDATES:
+        config = c.config()
+        assert config.overtaking and config.station_bays == c.bays > 1
+        assert config.clearance_governor_m <= config.sensing_range_m - 2 * config.robot_radius
+    assert design.Settings(search="passing").n_seeds == 5
+    assert design.Settings(search="bays").n_seeds == 3
+    assert design.Settings(search="passing", seeds=7).n_seeds == 7
+
+
+def _prow(name: str, e: float, e_high: float, knee: float, rho: float) -> dict[str, object]:
+    return {"candidate": name, "e": e, "e_high": e_high, "knee": knee, "rho": rho}
+
+
+def test_the_passing_rule_ranks_by_targets_met_then_by_e() -> None:
+    rows = [
+        _prow("low_e_no_knee", 0.80, 0.90, 1.05, 1.30),  # 2 targets
+        _prow("all_three", 0.93, 0.99, 1.12, 1.26),  # 3 targets
+        _prow("wide_interval", 0.90, 1.05, 1.20, 1.25),  # e's upper end misses: 2 targets
+        _prow("held_back", 1.30, 1.40, 1.30, 1.00),  # 1 target
+    ]
+    order = [r["candidate"] for r in design.passing_order(rows, 1.1)]
+    assert order == ["all_three", "low_e_no_knee", "wide_interval", "held_back"]
+    assert design.targets_met(rows[2], 1.1) == {"e": False, "knee": True, "rho": True}
+    without = [r for r in rows if r["candidate"] != "all_three"]
+    assert design.passing_order(without, 1.1)[0]["candidate"] == "low_e_no_knee"
+    # on e and the knee alone "all_three" is beaten by "wide_interval"; with rho it is not
+    assert "all_three" not in [r["candidate"] for r in design.frontier(rows)]
+    assert "all_three" in [r["candidate"] for r in design.frontier(rows, with_rho=True)]
