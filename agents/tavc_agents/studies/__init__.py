@@ -26,6 +26,7 @@ STUDIES: dict[str, str] = {
         "liveness",
         "congestion_design",
         "regime_map",
+        "passing",
         "twin_audit",
         "twin_batch",
         "cli_startup",
