@@ -104,7 +104,7 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             "allocator 'greedy' needs the TAVC model",
         ),
         (["record", "--out", "arena.mp4"], "allowed: a .gif (animation) or .png"),
-        (["trial", "--allocator", "static", "--model", "/nonexistent.json"], "does not exist"),
+        (["trial", "--allocator", "static", "--model", "/nonexistent.json"], "/nonexistent.json is missing"),
         (["trial", "--allocator", "static", "--model", __file__, *TINY], "could not be read"),
         (["bench", "nope"], "study 'nope' is unknown; allowed: ["),
     ],

@@ -36,7 +36,7 @@ from typing import Any, Generic, TypeVar
 from tqdm import tqdm
 
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
-from tavc_agents.experiments.registry import make_allocator
+from tavc_agents.experiments.registry import REGISTRY, Allocator, make_allocator
 from tavc_agents.experiments.runner import Event, TrialResult, run_trial
 from tavc_env import ArenaConfig
 
@@ -359,9 +359,18 @@ class _Task(Generic[J, R]):
         return result
 
 
+def _init_worker(parent: int, registered: Sequence[Allocator] = ()) -> None:
+    """Pool worker initialiser: the allocators the driver registered at run time (a worker that is
+    spawned rather than forked starts without them; entry points it finds itself), then
+    `_die_with_parent`."""
+    for entry in registered:
+        REGISTRY.register(entry.name, entry.factory, team=entry.team, replace=True)
+    _die_with_parent(parent)
+
+
 def _die_with_parent(parent: int) -> None:
-    """Pool worker initialiser: ask Linux to kill this worker when its parent dies (SIGKILL of the
-    driver leaves no orphan burning a core); elsewhere a no-op."""
+    """Ask Linux to kill this worker when its parent dies (SIGKILL of the driver leaves no orphan
+    burning a core); elsewhere a no-op."""
     if sys.platform.startswith("linux"):
         with contextlib.suppress(OSError, AttributeError):
             libc = ctypes.CDLL(None, use_errno=True)
@@ -381,7 +390,9 @@ def _run_in_pool(
     fail: Callable[[J, BaseException], None],
 ) -> None:
     pool = ProcessPoolExecutor(
-        max_workers=n_workers, initializer=_die_with_parent, initargs=(os.getpid(),)
+        max_workers=n_workers,
+        initializer=_init_worker,
+        initargs=(os.getpid(), REGISTRY.registered_at_run_time()),
     )
     futures: dict[Future[R], J] = {}
     try:

@@ -44,7 +44,7 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_c
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
-from tavc_agents.model import CompletionModel, SpeedClasses
+from tavc_agents.model import CompletionModel, SpeedClasses, load_model, missing_model
 from tavc_agents.studies.common import (
     RESULTS_DIR,
     Outcome,
@@ -53,7 +53,6 @@ from tavc_agents.studies.common import (
     run_trials,
 )
 from tavc_agents.studies.row_check import compare_rows, run_fresh, sample_rows
-from tavc_agents.studies.tavc_model import load_model, missing_model
 from tavc_env import make_config
 
 PresetName = Literal["dahl2004", "three_circuits_three_classes"]
