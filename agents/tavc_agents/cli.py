@@ -292,8 +292,15 @@ def _top_parser() -> argparse.ArgumentParser:
     return top
 
 
-EXTRAS = {"scipy": "bench", "matplotlib": "plot", "pygame": "render", "PIL": "render", "ray": "ray"}
-"""Optional dependencies by top-level module, and the extra of `tavc-env` that installs each."""
+EXTRAS = {
+    "scipy": ("scipy", "bench"),
+    "matplotlib": ("matplotlib", "plot"),
+    "pygame": ("pygame", "render"),
+    "PIL": ("Pillow", "render"),
+    "ray": ("ray", "ray"),
+}
+"""Optional dependencies by top-level module: the distribution, and the extra of `tavc-env` that
+installs it."""
 
 
 def missing_extra(error: ImportError) -> str | None:
@@ -301,10 +308,13 @@ def missing_extra(error: ImportError) -> str | None:
     dependency that is not installed; None for any other import error (a bug, not a setup)."""
     cause: BaseException | None = error
     while cause is not None:
-        name = getattr(cause, "name", None) or ""
-        extra = EXTRAS.get(name.partition(".")[0])
-        if isinstance(cause, ModuleNotFoundError) and extra is not None:
-            return f"this needs {name}, which is not installed: pip install 'tavc-env[{extra}]'"
+        module = (getattr(cause, "name", None) or "").partition(".")[0]
+        if isinstance(cause, ModuleNotFoundError) and module in EXTRAS:
+            distribution, extra = EXTRAS[module]
+            return (
+                f"this needs {distribution}, which is not installed: "
+                f"pip install 'tavc-env[{extra}]'"
+            )
         cause = cause.__cause__ or cause.__context__
     return None
 

@@ -5,6 +5,7 @@ allowed."""
 from __future__ import annotations
 
 import contextlib
+import importlib
 import importlib.metadata
 import io
 import json
@@ -104,7 +105,10 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             "allocator 'greedy' needs the TAVC model",
         ),
         (["record", "--out", "arena.mp4"], "allowed: a .gif (animation) or .png"),
-        (["trial", "--allocator", "static", "--model", "/nonexistent.json"], "/nonexistent.json is missing"),
+        (
+            ["trial", "--allocator", "static", "--model", "/nonexistent.json"],
+            "/nonexistent.json is missing",
+        ),
         (["trial", "--allocator", "static", "--model", __file__, *TINY], "could not be read"),
         (["bench", "nope"], "study 'nope' is unknown; allowed: ["),
     ],
@@ -183,3 +187,58 @@ def test_table1_figures_are_redrawn_from_saved_trials(tmp_path: Path) -> None:
     assert saved["trials_run"] == 4 and saved["trials_resumed"] == 0
     code, _, err = run(["plot", "table1", str(tmp_path)])
     assert code == 2 and "has no provenance.json" in err
+
+
+def test_version_and_python_m() -> None:
+    from tavc_env import __version__
+
+    code, out, _ = run(["--version"])
+    assert code == 0 and out == f"tavc {__version__}\n"
+    done = subprocess.run(
+        [sys.executable, "-m", "tavc_agents", "--version"], capture_output=True, text=True
+    )
+    assert done.returncode == 0 and done.stdout == f"tavc {__version__}\n"
+
+
+@pytest.mark.parametrize(
+    ("module", "distribution", "extra"),
+    [
+        ("scipy", "scipy", "bench"),
+        ("matplotlib.pyplot", "matplotlib", "plot"),
+        ("PIL", "Pillow", "render"),
+        ("ray", "ray", "ray"),
+    ],
+)
+def test_a_missing_extra_is_one_line_naming_it(
+    module: str, distribution: str, extra: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import tavc_agents.cli as cli
+
+    def needs(args: object) -> int:
+        importlib.import_module(module)
+        return 0
+
+    monkeypatch.setitem(sys.modules, module, None)  # as if not installed: the import fails
+    monkeypatch.setattr(cli, "cmd_trial", needs)
+    code, out, err = run(["trial"])
+    assert (code, out) == (2, "")
+    assert err == (
+        f"tavc trial: this needs {distribution}, which is not installed: "
+        f"pip install 'tavc-env[{extra}]'\n"
+    )
+
+
+def test_pygame_missing_behind_the_renderers_own_error_is_named() -> None:
+    from tavc_agents.cli import missing_extra
+
+    try:
+        try:
+            raise ModuleNotFoundError("No module named 'pygame'", name="pygame")
+        except ImportError as cause:
+            raise ImportError("rendering needs pygame") from cause
+    except ImportError as error:
+        assert missing_extra(error) == (
+            "this needs pygame, which is not installed: pip install 'tavc-env[render]'"
+        )
+    other = ModuleNotFoundError("No module named 'numpyy'", name="numpyy")
+    assert missing_extra(other) is None  # not an extra: a bug, whose traceback is wanted

@@ -115,13 +115,14 @@ class AllocatorRegistry:
         if isinstance(factory, TeamFactory):
             factory, team = factory.factory, True
         if not replace and name in self.names():
-            taken = self._entries[name].origin if name in self._entries else "an entry point"
+            entry = self._entries.get(name)
+            taken = entry.origin if entry else _where(self._entry_points()[name])
             raise ValueError(
                 f"allocator {name!r} is taken ({taken}); allowed: another name, or "
                 "replace=True to replace it"
             )
-        entry = Allocator(name, factory, bool(team), "registered at run time")
-        self._entries[name] = self._runtime[name] = entry
+        made = Allocator(name, factory, bool(team), "registered at run time")
+        self._entries[name] = self._runtime[name] = made
 
     def registered_at_run_time(self) -> tuple[Allocator, ...]:
         """What `register` added in this process (what worker processes must be told)."""
@@ -158,8 +159,7 @@ class AllocatorRegistry:
             for point in points:
                 if point.name in self._built_in:
                     warnings.warn(
-                        f"the entry point {point.name} = {point.value!r} of {_dist(point)} is "
-                        f"ignored: {point.name!r} is a built-in allocator",
+                        f"the {_where(point)} is ignored: {point.name!r} is a built-in allocator",
                         stacklevel=2,
                     )
                 else:
@@ -188,14 +188,16 @@ class AllocatorRegistry:
         return lambda agent: self.make_policy(name, **params)
 
 
-def _dist(point: metadata.EntryPoint) -> str:
+def _where(point: metadata.EntryPoint) -> str:
+    """An entry point and the distribution that declares it, for messages."""
     dist = point.dist
-    return f"{dist.name} {dist.version}" if dist is not None else "an installed package"
+    of = f"{dist.name} {dist.version}" if dist is not None else "an installed package"
+    return f"entry point {point.name} = {point.value!r} of {of}"
 
 
 def _load(point: metadata.EntryPoint) -> Allocator:
     """The allocator an entry point names; a `PluginError` naming the plugin if it cannot load."""
-    where = f"entry point {point.name} = {point.value!r} of {_dist(point)}"
+    where = _where(point)
     try:
         factory = point.load()
     except Exception as error:  # whatever the plugin's import raises is the plugin's fault
