@@ -215,7 +215,12 @@ def run_study(
         print(line, file=sys.stderr)
     print(f"\nResults in {outcome.out_dir}/")
     reference = settings.reference_dir()
-    if Path(outcome.out_dir).resolve() != reference.resolve():
+    if CHECKOUT is None and not reference.is_dir():
+        print(
+            "Not compared with the committed reference: it is part of a source checkout "
+            "(benchmarks/results/), and this package is installed."
+        )
+    elif Path(outcome.out_dir).resolve() != reference.resolve():
         compare = getattr(module, "agreement", compare_tables)
         for line in compare(Path(outcome.out_dir), reference):
             print(line)

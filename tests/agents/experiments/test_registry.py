@@ -258,3 +258,30 @@ def test_a_sweep_with_spawned_workers_runs_plugins_and_run_time_registrations(
 def test_the_default_registry_builds_by_name() -> None:
     assert make_allocator.__self__ is REGISTRY  # type: ignore[attr-defined]
     assert set(REGISTRY.names()) >= {a.name for a in BUILT_IN}
+
+
+def test_the_allocators_study_compares_plugins(
+    example: ModuleType, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from tavc_agents.model import load_model
+    from tavc_agents.studies import allocators
+
+    registry = fresh()
+
+    def with_model(model: object, share: float = 0.5) -> object:
+        return example.SplitTeam()
+
+    registry.register("mine", example.BestRewardSoFar)
+    registry.register("mine_with_model", with_model, team=True)
+    monkeypatch.setattr(allocators, "REGISTRY", registry)
+    monkeypatch.setattr(allocators, "allocator_names", registry.names)
+    settings = allocators.Settings(presets=("dahl2004",), plugins=("mine", "mine_with_model"))
+    model = load_model("dahl2004")
+    specs = {s.tags["allocator"]: s for s in allocators.specs(settings, {"dahl2004": model})}
+    assert list(specs)[-2:] == ["mine", "mine_with_model"]
+    assert specs["mine"].allocator == "mine" and dict(specs["mine"].allocator_kwargs) == {}
+    assert dict(specs["mine_with_model"].allocator_kwargs) == {"model": model.to_dict()}
+    assert settings.recorded()["plugins"] == "['mine', 'mine_with_model']"
+    assert "plugins" not in allocators.Settings().recorded()  # reports without plugins unchanged
+    with pytest.raises(ValueError, match=r"plugins = \('nope',\) is invalid; allowed: distinct"):
+        allocators.Settings(plugins=("nope",))
