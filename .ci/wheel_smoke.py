@@ -44,6 +44,7 @@ QUICK: dict[str, tuple[str, str | None]] = {
         "plot timeline trial.json --out timeline.png",
         "plot",
     ),
+    "tavc --version": ("--version", None),
 }
 
 
