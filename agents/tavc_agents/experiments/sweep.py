@@ -12,6 +12,11 @@ Backends: `"local"` (default) runs trials in a process pool over this machine's 
 nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
 or, with `RAY_ADDRESS` set, on a cluster whose nodes have this package installed. Either way the
 driver writes each result the moment it arrives, so the two backends resume each other's sweeps.
+
+Allocators are named through `tavc_agents.experiments.registry`: every process finds the
+`tavc.allocators` entry points itself; the local pool's workers also receive the driver's run-time
+registrations (a spawned worker only those it can unpickle: refused by name before any job runs
+otherwise); Ray workers see entry points only.
 """
 
 from __future__ import annotations
@@ -22,7 +27,9 @@ import dataclasses
 import hashlib
 import inspect
 import json
+import multiprocessing
 import os
+import pickle
 import re
 import signal
 import sys
@@ -359,6 +366,25 @@ class _Task(Generic[J, R]):
         return result
 
 
+def _registered_for_workers() -> tuple[Allocator, ...]:
+    """The allocators registered at run time, for the pool's workers; a ValueError naming one that
+    a spawned (not forked) worker cannot receive, before any job starts."""
+    registered = REGISTRY.registered_at_run_time()
+    if multiprocessing.get_start_method() == "fork":
+        return registered  # a forked worker has them in its copy of the memory: nothing is sent
+    for entry in registered:
+        try:
+            pickle.dumps(entry)
+        except Exception as error:  # pickling errors have no one type (PicklingError, ...)
+            raise ValueError(
+                f"allocator {entry.name!r} was registered at run time with a factory that worker "
+                f"processes cannot receive ({type(error).__name__}: {error}); allowed: a factory "
+                "defined at the top level of an importable module, a tavc.allocators entry point, "
+                "or workers=1"
+            ) from None
+    return registered
+
+
 def _init_worker(parent: int, registered: Sequence[Allocator] = ()) -> None:
     """Pool worker initialiser: the allocators the driver registered at run time (a worker that is
     spawned rather than forked starts without them; entry points it finds itself), then
@@ -392,7 +418,7 @@ def _run_in_pool(
     pool = ProcessPoolExecutor(
         max_workers=n_workers,
         initializer=_init_worker,
-        initargs=(os.getpid(), REGISTRY.registered_at_run_time()),
+        initargs=(os.getpid(), _registered_for_workers()),
     )
     futures: dict[Future[R], J] = {}
     try:

@@ -237,6 +237,11 @@ def test_a_sweep_with_spawned_workers_runs_plugins_and_run_time_registrations(
             ]
             results = run_sweep(specs, {str(tmp_path / "out")!r}, workers=2)
             print(sorted(results))
+            register_allocator("a_lambda", lambda: BestRewardSoFar())
+            try:
+                run_sweep(specs, {str(tmp_path / "out2")!r}, workers=2)
+            except ValueError as error:
+                print(error)
         """
     )
     done = subprocess.run(
@@ -248,6 +253,9 @@ def test_a_sweep_with_spawned_workers_runs_plugins_and_run_time_registrations(
     )
     assert done.returncode == 0, done.stderr
     assert "['example_greedy_reward', 'example_split', 'registered_here']" in done.stdout
+    # a factory a spawned worker cannot receive is named before anything runs
+    assert "allocator 'a_lambda' was registered at run time with a factory that" in done.stdout
+    assert not (tmp_path / "out2").exists() or not list((tmp_path / "out2").glob("*.json"))
     assert sorted(p.name for p in (tmp_path / "out").glob("*.json")) == [
         "example_greedy_reward.json",
         "example_split.json",
