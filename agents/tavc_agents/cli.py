@@ -221,10 +221,17 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 def cmd_plot(args: argparse.Namespace) -> int:
     from tavc_agents.analysis import plots
+    from tavc_agents.experiments.provenance import CHECKOUT
     from tavc_agents.experiments.runner import TrialResult
     from tavc_agents.studies.common import RESULTS_DIR
 
     if args.what == "interference":
+        if args.source is None and CHECKOUT is None:
+            raise ValueError(
+                "plot interference needs an interference.csv: the committed one is part of a "
+                "source checkout, and this package is installed; allowed: a path to one written "
+                "by tavc bench interference"
+            )
         source = args.source or RESULTS_DIR / "interference.csv"
         plots.interference_curve(_existing(source), args.out)
     elif args.what == "table1":

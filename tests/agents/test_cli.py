@@ -242,3 +242,22 @@ def test_pygame_missing_behind_the_renderers_own_error_is_named() -> None:
         )
     other = ModuleNotFoundError("No module named 'numpyy'", name="numpyy")
     assert missing_extra(other) is None  # not an extra: a bug, whose traceback is wanted
+
+
+def test_outside_a_checkout_reference_results_are_not_assumed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What an installed wheel does where a checkout has benchmarks/results (simulated by
+    CHECKOUT = None): it refuses to update them and says it has none to read."""
+    from tavc_agents.experiments import provenance
+    from tavc_agents.studies import common, table1
+
+    assert provenance.CHECKOUT == Path(__file__).resolve().parents[2]  # the tests run in one
+    monkeypatch.setattr(provenance, "CHECKOUT", None)
+    monkeypatch.setattr(common, "CHECKOUT", None)
+    with pytest.raises(ValueError, match=r"--update-reference is invalid here: .* allowed: --out"):
+        table1.Settings(update_reference=True)
+    code, _, err = run(["plot", "interference", "--out", str(tmp_path / "i.png")])
+    assert code == 2 and "the committed one is part of a source checkout" in err
+    code, _, err = run(["trial", "--allocator", "greedy", "--preset", "dahl2004_bays", *TINY])
+    assert code == 2 and "no TAVC model of 'dahl2004_bays' ships with the package" in err
