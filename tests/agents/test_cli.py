@@ -252,7 +252,7 @@ def test_outside_a_checkout_reference_results_are_not_assumed(
     from tavc_agents.experiments import provenance
     from tavc_agents.studies import common, table1
 
-    assert provenance.CHECKOUT == Path(__file__).resolve().parents[2]  # the tests run in one
+    assert Path(__file__).resolve().parents[2] == provenance.CHECKOUT  # the tests run in one
     monkeypatch.setattr(provenance, "CHECKOUT", None)
     monkeypatch.setattr(common, "CHECKOUT", None)
     with pytest.raises(ValueError, match=r"--update-reference is invalid here: .* allowed: --out"):

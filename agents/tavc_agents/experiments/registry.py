@@ -163,7 +163,7 @@ class AllocatorRegistry:
                         stacklevel=2,
                     )
                 else:
-                    found.setdefault(point.name, point)  # the first of duplicates, as Python's
+                    found.setdefault(point.name, point)  # one name twice: the first on the path
             self._plugins = found
         return self._plugins
 
