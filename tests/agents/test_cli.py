@@ -261,3 +261,19 @@ def test_outside_a_checkout_reference_results_are_not_assumed(
     assert code == 2 and "the committed one is part of a source checkout" in err
     code, _, err = run(["trial", "--allocator", "greedy", "--preset", "dahl2004_bays", *TINY])
     assert code == 2 and "no TAVC model of 'dahl2004_bays' ships with the package" in err
+
+
+def test_allocator_choices_are_the_registrys_when_the_command_runs(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from tavc_agents.allocators.baselines import StayAllocator
+    from tavc_agents.experiments import registry
+
+    mine = registry.AllocatorRegistry(registry.BUILT_IN, group=None)
+    monkeypatch.setattr(registry, "allocator_names", mine.names)
+    monkeypatch.setattr(registry, "make_allocator", mine.make_allocator)
+    assert run(["trial", "--allocator", "sticky_after_import", *TINY])[0] == 2  # not yet known
+    mine.register("sticky_after_import", StayAllocator)  # after the CLI module was imported
+    code, out, err = run(["trial", "--allocator", "sticky_after_import", *TINY])
+    assert code == 0, err
+    assert "sticky_after_import on dahl2004, seed 0" in out
