@@ -40,6 +40,7 @@ LAYERS: list[tuple[int, str]] = [
     (7, "tavc_agents.analysis"),
     (8, "tavc_agents.studies"),
     (9, "tavc_agents.cli"),
+    (9, "tavc_agents.__main__"),  # `python -m tavc_agents`: the cli
     (9, "tavc_agents"),  # the package's __init__ (a docstring)
     (10, "benchmarks"),
 ]

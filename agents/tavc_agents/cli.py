@@ -48,19 +48,20 @@ COMMANDS = {
 
 def _allocator(args: argparse.Namespace) -> Any:
     from tavc_agents.experiments.registry import make_allocator
-    from tavc_agents.studies.common import RESULTS_DIR, parse_key_values
+    from tavc_agents.model import missing_model, model_path
+    from tavc_agents.studies.common import parse_key_values
 
     params = parse_key_values(args.param, "--param", "temperature=0.01")
     if args.allocator in NEEDS_MODEL and "model" not in params and "circuits" not in params:
-        path = args.model or RESULTS_DIR / "tavc_model" / args.preset / "model.json"
-        if not Path(path).exists():
+        problem = missing_model(args.preset, args.model)
+        if problem is not None:
             raise ValueError(
-                f"allocator {args.allocator!r} needs the TAVC model of the arena, and {path} does "
-                f"not exist; allowed: --model PATH, or make it with: tavc bench tavc_model "
-                f"--preset {args.preset}"
+                f"allocator {args.allocator!r} needs the TAVC model of the arena: {problem}; "
+                "allowed: --model PATH (a model.json written by tavc bench tavc_model)"
             )
+        path = model_path(args.preset, args.model)
         try:
-            params["model"] = json.loads(Path(path).read_text())
+            params["model"] = json.loads(path.read_text())
         except (OSError, json.JSONDecodeError) as error:
             raise ValueError(
                 f"--model {path} could not be read ({error}); allowed: a model.json written by "
@@ -70,12 +71,15 @@ def _allocator(args: argparse.Namespace) -> Any:
 
 
 def _trial_options(parser: argparse.ArgumentParser) -> None:
-    from tavc_agents.experiments.registry import ALLOCATORS
+    from tavc_agents.experiments.registry import allocator_names
     from tavc_env import PRESETS
 
     parser.add_argument("--preset", default="dahl2004", choices=sorted(PRESETS))
-    parser.add_argument(
-        "--allocator", default="softmax_tavc", choices=ALLOCATORS, help="default: softmax_tavc"
+    parser.add_argument(  # the names now, with plugins' (tavc.allocators entry points)
+        "--allocator",
+        default="softmax_tavc",
+        choices=allocator_names(),
+        help="default: softmax_tavc",
     )
     parser.add_argument(
         "--param",
@@ -95,7 +99,8 @@ def _trial_options(parser: argparse.ArgumentParser) -> None:
         "--model",
         type=Path,
         default=None,
-        help=f"model.json for {', '.join(NEEDS_MODEL)} (default: the committed one of the preset)",
+        help=f"model.json for {', '.join(NEEDS_MODEL)} (default: the one the package ships for "
+        "the preset)",
     )
     parser.add_argument("--seed", type=int, default=0)
 
@@ -169,12 +174,8 @@ def summary(result: TrialResult, allocator: str) -> str:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    try:
-        from PIL import Image
-    except ImportError as error:
-        raise ImportError(
-            "recording needs Pillow and pygame: pip install 'tavc-env[render]'"
-        ) from error
+    from PIL import Image  # the render extra (`missing_extra` names it if absent)
+
     kind = args.out.suffix.lower()
     if kind not in (".gif", ".png"):
         raise ValueError(
@@ -220,10 +221,17 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 def cmd_plot(args: argparse.Namespace) -> int:
     from tavc_agents.analysis import plots
+    from tavc_agents.experiments.provenance import CHECKOUT
     from tavc_agents.experiments.runner import TrialResult
     from tavc_agents.studies.common import RESULTS_DIR
 
     if args.what == "interference":
+        if args.source is None and CHECKOUT is None:
+            raise ValueError(
+                "plot interference needs an interference.csv: the committed one is part of a "
+                "source checkout, and this package is installed; allowed: a path to one written "
+                "by tavc bench interference"
+            )
         source = args.source or RESULTS_DIR / "interference.csv"
         plots.interference_curve(_existing(source), args.out)
     elif args.what == "table1":
@@ -275,10 +283,53 @@ def _run_study(name: str, argv: Sequence[str], prog: str) -> int:
     return run_study(module, argv, module.__doc__ or name, prog)
 
 
+class _Version(argparse.Action):
+    """`tavc --version`: the package's version, imported only when asked for."""
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: Any, **kwargs: Any) -> None:
+        from tavc_env import __version__
+
+        print(f"tavc {__version__}")
+        parser.exit()
+
+
+def _top_parser() -> argparse.ArgumentParser:
+    top = argparse.ArgumentParser(prog="tavc", description=DESCRIPTION, epilog=EPILOG)
+    top.add_argument("--version", action=_Version, nargs=0, help="show the version and exit")
+    return top
+
+
+EXTRAS = {
+    "scipy": ("scipy", "bench"),
+    "matplotlib": ("matplotlib", "plot"),
+    "pygame": ("pygame", "render"),
+    "PIL": ("Pillow", "render"),
+    "ray": ("ray", "ray"),
+}
+"""Optional dependencies by top-level module: the distribution, and the extra of `tavc-env` that
+installs it."""
+
+
+def missing_extra(error: ImportError) -> str | None:
+    """The line that names the extra to install, if `error` (or what caused it) is an optional
+    dependency that is not installed; None for any other import error (a bug, not a setup)."""
+    cause: BaseException | None = error
+    while cause is not None:
+        module = (getattr(cause, "name", None) or "").partition(".")[0]
+        if isinstance(cause, ModuleNotFoundError) and module in EXTRAS:
+            distribution, extra = EXTRAS[module]
+            return (
+                f"this needs {distribution}, which is not installed: "
+                f"pip install 'tavc-env[{extra}]'"
+            )
+        cause = cause.__cause__ or cause.__context__
+    return None
+
+
 def light_parser() -> argparse.ArgumentParser:
     """The top level only (commands and their one-line help): what `tavc --help` shows, without
     importing the package."""
-    top = argparse.ArgumentParser(prog="tavc", description=DESCRIPTION, epilog=EPILOG)
+    top = _top_parser()
     sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, text in COMMANDS.items():
         sub.add_parser(name, help=text, add_help=False)
@@ -286,9 +337,9 @@ def light_parser() -> argparse.ArgumentParser:
 
 
 def parser() -> argparse.ArgumentParser:
-    from tavc_agents.experiments.registry import TEAMS
+    from tavc_agents.experiments.registry import BUILT_IN
 
-    top = argparse.ArgumentParser(prog="tavc", description=DESCRIPTION, epilog=EPILOG)
+    top = _top_parser()
     sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     trial = sub.add_parser(
@@ -296,7 +347,8 @@ def parser() -> argparse.ArgumentParser:
         help=COMMANDS["trial"],
         description="Run one trial: a convergence period, then a measured period whose delivered "
         "value, switches and time shares are printed. Team allocators "
-        f"({', '.join(sorted(TEAMS))}) coordinate the robots; the others are per robot.",
+        f"({', '.join(a.name for a in BUILT_IN if a.team)}, and any plugin's declared as one) "
+        "coordinate the robots; the others are per robot.",
     )
     _trial_options(trial)
     trial.add_argument(
@@ -380,7 +432,7 @@ def _strip(args: Sequence[str]) -> list[str]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     given = list(sys.argv[1:] if argv is None else argv)
-    if not given or given[0] in ("-h", "--help") or given[0] not in COMMANDS:
+    if not given or given[0] in ("-h", "--help", "--version") or given[0] not in COMMANDS:
         light_parser().parse_args(given)  # help, or the error for a missing or unknown command
     top = parser()
     # `tavc reproduce --quick` and `tavc bench NAME --trials 3`: the study's own options follow
@@ -412,8 +464,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             check_writable(args.out)  # before any simulation, not after it
         code: int = args.run(args)
-    except ValueError as error:
+    except ValueError as error:  # also a plugin that does not load (registry.PluginError)
         top.error(str(error))
+    except ImportError as error:
+        line = missing_extra(error)
+        if line is None:
+            raise
+        print(f"tavc {args.command}: {line}", file=sys.stderr)
+        return 2
     return code
 
 

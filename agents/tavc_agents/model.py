@@ -30,6 +30,11 @@ import numpy as np
 from tavc_env import ArenaConfig, Robot, metrics
 from tavc_env._validation import is_number, require
 
+REFERENCE_MODELS = Path(__file__).parent / "data" / "models"
+"""The measured models the package ships, `<preset>.json` each: what the model-based allocators
+(`static`, `greedy`, `auction`) use by default. They are package data, so an installed wheel has
+them; the `tavc_model` study writes them (`--update-reference`), and this is their only copy."""
+
 Group = tuple[int, ...]  # robots per speed class on one circuit
 Allocation = tuple[Group, ...]  # one group per circuit
 
@@ -298,6 +303,30 @@ class CompletionModel:
         )
         for g in allocation:
             self._group(g)
+
+
+def model_path(preset: str, path: Path | None = None) -> Path:
+    """`path`, or the shipped model of `preset` (which may not exist: see `missing_model`)."""
+    return path if path is not None else REFERENCE_MODELS / f"{preset}.json"
+
+
+def missing_model(preset: str, path: Path | None = None) -> str | None:
+    """Why the model at `path` (default: the shipped one of `preset`) cannot be used, or None."""
+    where = model_path(preset, path)
+    if where.is_file():
+        return None
+    if path is not None:
+        return f"{where} is missing"
+    shipped = sorted(p.stem for p in REFERENCE_MODELS.glob("*.json"))
+    return (
+        f"no TAVC model of {preset!r} ships with the package (it has those of {shipped}); "
+        f"measure one with `tavc bench tavc_model --preset {preset}` and pass its model.json"
+    )
+
+
+def load_model(preset: str, path: Path | None = None) -> CompletionModel:
+    """The model at `path` (default: the shipped model of `preset`)."""
+    return CompletionModel.load(model_path(preset, path))
 
 
 def as_model(model: CompletionModel | Mapping[str, Any]) -> CompletionModel:

@@ -5,6 +5,7 @@ allowed."""
 from __future__ import annotations
 
 import contextlib
+import importlib
 import importlib.metadata
 import io
 import json
@@ -104,7 +105,10 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             "allocator 'greedy' needs the TAVC model",
         ),
         (["record", "--out", "arena.mp4"], "allowed: a .gif (animation) or .png"),
-        (["trial", "--allocator", "static", "--model", "/nonexistent.json"], "does not exist"),
+        (
+            ["trial", "--allocator", "static", "--model", "/nonexistent.json"],
+            "/nonexistent.json is missing",
+        ),
         (["trial", "--allocator", "static", "--model", __file__, *TINY], "could not be read"),
         (["bench", "nope"], "study 'nope' is unknown; allowed: ["),
     ],
@@ -183,3 +187,93 @@ def test_table1_figures_are_redrawn_from_saved_trials(tmp_path: Path) -> None:
     assert saved["trials_run"] == 4 and saved["trials_resumed"] == 0
     code, _, err = run(["plot", "table1", str(tmp_path)])
     assert code == 2 and "has no provenance.json" in err
+
+
+def test_version_and_python_m() -> None:
+    from tavc_env import __version__
+
+    code, out, _ = run(["--version"])
+    assert code == 0 and out == f"tavc {__version__}\n"
+    done = subprocess.run(
+        [sys.executable, "-m", "tavc_agents", "--version"], capture_output=True, text=True
+    )
+    assert done.returncode == 0 and done.stdout == f"tavc {__version__}\n"
+
+
+@pytest.mark.parametrize(
+    ("module", "distribution", "extra"),
+    [
+        ("scipy", "scipy", "bench"),
+        ("matplotlib.pyplot", "matplotlib", "plot"),
+        ("PIL", "Pillow", "render"),
+        ("ray", "ray", "ray"),
+    ],
+)
+def test_a_missing_extra_is_one_line_naming_it(
+    module: str, distribution: str, extra: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import tavc_agents.cli as cli
+
+    def needs(args: object) -> int:
+        importlib.import_module(module)
+        return 0
+
+    monkeypatch.setitem(sys.modules, module, None)  # as if not installed: the import fails
+    monkeypatch.setattr(cli, "cmd_trial", needs)
+    code, out, err = run(["trial"])
+    assert (code, out) == (2, "")
+    assert err == (
+        f"tavc trial: this needs {distribution}, which is not installed: "
+        f"pip install 'tavc-env[{extra}]'\n"
+    )
+
+
+def test_pygame_missing_behind_the_renderers_own_error_is_named() -> None:
+    from tavc_agents.cli import missing_extra
+
+    try:
+        try:
+            raise ModuleNotFoundError("No module named 'pygame'", name="pygame")
+        except ImportError as cause:
+            raise ImportError("rendering needs pygame") from cause
+    except ImportError as error:
+        assert missing_extra(error) == (
+            "this needs pygame, which is not installed: pip install 'tavc-env[render]'"
+        )
+    other = ModuleNotFoundError("No module named 'numpyy'", name="numpyy")
+    assert missing_extra(other) is None  # not an extra: a bug, whose traceback is wanted
+
+
+def test_outside_a_checkout_reference_results_are_not_assumed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What an installed wheel does where a checkout has benchmarks/results (simulated by
+    CHECKOUT = None): it refuses to update them and says it has none to read."""
+    from tavc_agents.experiments import provenance
+    from tavc_agents.studies import common, table1
+
+    assert Path(__file__).resolve().parents[2] == provenance.CHECKOUT  # the tests run in one
+    monkeypatch.setattr(provenance, "CHECKOUT", None)
+    monkeypatch.setattr(common, "CHECKOUT", None)
+    with pytest.raises(ValueError, match=r"--update-reference is invalid here: .* allowed: --out"):
+        table1.Settings(update_reference=True)
+    code, _, err = run(["plot", "interference", "--out", str(tmp_path / "i.png")])
+    assert code == 2 and "the committed one is part of a source checkout" in err
+    code, _, err = run(["trial", "--allocator", "greedy", "--preset", "dahl2004_bays", *TINY])
+    assert code == 2 and "no TAVC model of 'dahl2004_bays' ships with the package" in err
+
+
+def test_allocator_choices_are_the_registrys_when_the_command_runs(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from tavc_agents.allocators.baselines import StayAllocator
+    from tavc_agents.experiments import registry
+
+    mine = registry.AllocatorRegistry(registry.BUILT_IN, group=None)
+    monkeypatch.setattr(registry, "allocator_names", mine.names)
+    monkeypatch.setattr(registry, "make_allocator", mine.make_allocator)
+    assert run(["trial", "--allocator", "sticky_after_import", *TINY])[0] == 2  # not yet known
+    mine.register("sticky_after_import", StayAllocator)  # after the CLI module was imported
+    code, out, err = run(["trial", "--allocator", "sticky_after_import", *TINY])
+    assert code == 0, err
+    assert "sticky_after_import on dahl2004, seed 0" in out

@@ -25,7 +25,17 @@ from tavc_agents.experiments.files import write_text
 from tavc_agents.experiments.sweep import JobKind, run_jobs
 
 PROVENANCE_FILE = "provenance.json"
-PACKAGE_ROOT = Path(__file__).resolve().parents[3]  # the source checkout, when installed from one
+
+
+def _checkout() -> Path | None:
+    # agents/tavc_agents/experiments/provenance.py in a checkout; site-packages/... in a wheel
+    root = Path(__file__).resolve().parents[3]
+    return root if (root / "pyproject.toml").is_file() and (root / "benchmarks").is_dir() else None
+
+
+CHECKOUT = _checkout()
+"""The source checkout the package runs from (an editable install, or the tests), or None when it
+is installed from a wheel: only a checkout has a git commit and the committed reference results."""
 _DISTRIBUTIONS = ("numpy", "scipy", "pymunk", "numba", "pettingzoo", "gymnasium")
 
 
@@ -59,12 +69,12 @@ def _version(distribution: str) -> str | None:
 
 
 def _git(*args: str) -> str | None:
-    if not (PACKAGE_ROOT / ".git").exists():
+    if CHECKOUT is None or not (CHECKOUT / ".git").exists():
         return None
     try:
         out = subprocess.run(
             ["git", *args],
-            cwd=PACKAGE_ROOT,
+            cwd=CHECKOUT,
             capture_output=True,
             text=True,
             timeout=10,

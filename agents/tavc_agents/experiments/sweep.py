@@ -12,6 +12,11 @@ Backends: `"local"` (default) runs trials in a process pool over this machine's 
 nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
 or, with `RAY_ADDRESS` set, on a cluster whose nodes have this package installed. Either way the
 driver writes each result the moment it arrives, so the two backends resume each other's sweeps.
+
+Allocators are named through `tavc_agents.experiments.registry`: every process finds the
+`tavc.allocators` entry points itself; the local pool's workers also receive the driver's run-time
+registrations (a spawned worker only those it can unpickle: refused by name before any job runs
+otherwise); Ray workers see entry points only.
 """
 
 from __future__ import annotations
@@ -22,7 +27,9 @@ import dataclasses
 import hashlib
 import inspect
 import json
+import multiprocessing
 import os
+import pickle
 import re
 import signal
 import sys
@@ -36,7 +43,7 @@ from typing import Any, Generic, TypeVar
 from tqdm import tqdm
 
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
-from tavc_agents.experiments.registry import make_allocator
+from tavc_agents.experiments.registry import REGISTRY, Allocator, make_allocator
 from tavc_agents.experiments.runner import Event, TrialResult, run_trial
 from tavc_env import ArenaConfig
 
@@ -359,9 +366,37 @@ class _Task(Generic[J, R]):
         return result
 
 
+def _registered_for_workers() -> tuple[Allocator, ...]:
+    """The allocators registered at run time, for the pool's workers; a ValueError naming one that
+    a spawned (not forked) worker cannot receive, before any job starts."""
+    registered = REGISTRY.registered_at_run_time()
+    if multiprocessing.get_start_method() == "fork":
+        return registered  # a forked worker has them in its copy of the memory: nothing is sent
+    for entry in registered:
+        try:
+            pickle.dumps(entry)
+        except Exception as error:  # pickling errors have no one type (PicklingError, ...)
+            raise ValueError(
+                f"allocator {entry.name!r} was registered at run time with a factory that worker "
+                f"processes cannot receive ({type(error).__name__}: {error}); allowed: a factory "
+                "defined at the top level of an importable module, a tavc.allocators entry point, "
+                "or workers=1"
+            ) from None
+    return registered
+
+
+def _init_worker(parent: int, registered: Sequence[Allocator] = ()) -> None:
+    """Pool worker initialiser: the allocators the driver registered at run time (a worker that is
+    spawned rather than forked starts without them; entry points it finds itself), then
+    `_die_with_parent`."""
+    for entry in registered:
+        REGISTRY.register(entry.name, entry.factory, team=entry.team, replace=True)
+    _die_with_parent(parent)
+
+
 def _die_with_parent(parent: int) -> None:
-    """Pool worker initialiser: ask Linux to kill this worker when its parent dies (SIGKILL of the
-    driver leaves no orphan burning a core); elsewhere a no-op."""
+    """Ask Linux to kill this worker when its parent dies (SIGKILL of the driver leaves no orphan
+    burning a core); elsewhere a no-op."""
     if sys.platform.startswith("linux"):
         with contextlib.suppress(OSError, AttributeError):
             libc = ctypes.CDLL(None, use_errno=True)
@@ -381,7 +416,9 @@ def _run_in_pool(
     fail: Callable[[J, BaseException], None],
 ) -> None:
     pool = ProcessPoolExecutor(
-        max_workers=n_workers, initializer=_die_with_parent, initargs=(os.getpid(),)
+        max_workers=n_workers,
+        initializer=_init_worker,
+        initargs=(os.getpid(), _registered_for_workers()),
     )
     futures: dict[Future[R], J] = {}
     try:

@@ -4,8 +4,9 @@ Every allocator -- random, `stay` (keep the circuit the start gave), epsilon-gre
 TAVC (the paper's three), static at the model optimum, greedy on the model's slot values, a
 MURDOCH / TraderBots-style auction, a Bonabeau-style response-threshold allocator, and every
 trained deep MARL network found for the preset (`--networks`: learning runs of `docs/examples`,
-in `--network-dir` (`benchmarks/results/marl/`) `<run>_<preset>/network.npz`, run greedily) --
-runs `--trials` trials per preset (default 10 x
+in `--network-dir` (`benchmarks/results/marl/`) `<run>_<preset>/network.npz`, run greedily), and
+your own allocators by name (`--plugins NAME ...`: registered, or a `tavc.allocators` entry
+point) -- runs `--trials` trials per preset (default 10 x
 (15 h + 5 h measured), the paper's periods). Reported per allocator, with 95 % intervals over
 trials:
 
@@ -31,6 +32,7 @@ interrupted run resumes; `reproduce_rows` re-runs a sample of them against `tria
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -42,9 +44,10 @@ import numpy as np
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
+from tavc_agents.experiments.registry import REGISTRY, allocator_names
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
-from tavc_agents.model import CompletionModel, SpeedClasses
+from tavc_agents.model import CompletionModel, SpeedClasses, load_model, missing_model
 from tavc_agents.studies.common import (
     RESULTS_DIR,
     Outcome,
@@ -53,7 +56,6 @@ from tavc_agents.studies.common import (
     run_trials,
 )
 from tavc_agents.studies.row_check import compare_rows, run_fresh, sample_rows
-from tavc_agents.studies.tavc_model import load_model, missing_model
 from tavc_env import make_config
 
 PresetName = Literal["dahl2004", "three_circuits_three_classes"]
@@ -90,6 +92,9 @@ class Settings(SweepOptions):
     """learning runs whose trained network joins the comparison where one exists for the preset"""
     network_dir: Path = RESULTS_DIR / "marl"
     """where the learning runs are (`<run>_<preset>/network.npz`)"""
+    plugins: tuple[str, ...] = ()
+    """more allocators by name, with their default parameters (and the preset's model if they
+    take `model`): your own, from a `tavc.allocators` entry point or registered at run time"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -100,6 +105,13 @@ class Settings(SweepOptions):
             ("measured_h", _finite(self.measured_h) and self.measured_h > 0, "> 0"),
         ]
         refuse_invalid(self, checks)
+        known = allocator_names()
+        unknown = [name for name in self.plugins if name not in known]
+        if unknown or len(set(self.plugins)) != len(self.plugins):
+            raise ValueError(
+                f"plugins = {self.plugins!r} is invalid; allowed: distinct allocator names from "
+                f"{known}"
+            )
         if self.model is not None and len(self.model) != len(self.presets):
             raise ValueError(
                 f"model = {self.model!r} is invalid; allowed: one path per preset {self.presets}"
@@ -135,7 +147,13 @@ class Settings(SweepOptions):
             "model": str(None if s.model is None else list(s.model)),
             "networks": str(list(s.networks)),
             "network_dir": str(s.network_dir),
+            # only when given, so the reports of runs without plugins record what they always did
+            **({"plugins": str(list(s.plugins))} if s.plugins else {}),
         }
+
+    def compared(self, preset: str, model: CompletionModel) -> list[Allocator]:
+        """The allocators compared on `preset`, in report order."""
+        return allocators(model, self.network_paths(preset), self.plugins)
 
     def network_paths(self, preset: str) -> dict[str, Path]:
         """The trained networks found for `preset`, by learning run."""
@@ -164,11 +182,14 @@ class Allocator:
 
 
 def allocators(
-    model: CompletionModel, networks: Mapping[str, Path] | None = None
+    model: CompletionModel,
+    networks: Mapping[str, Path] | None = None,
+    plugins: Sequence[str] = (),
 ) -> list[Allocator]:
     """The allocators compared, in report order (the model-based ones get `model`; `networks`:
-    trained networks by learning run)."""
+    trained networks by learning run; `plugins`: more allocators by registry name)."""
     m = model.to_dict()
+    extra = [Allocator(name, name, {"model": m} if takes_model(name) else {}) for name in plugins]
     trained = [
         Allocator(f"network_{run}", f"{run} (trained network)", {"weights": str(path)}, "network")
         for run, path in (networks or {}).items()
@@ -183,7 +204,13 @@ def allocators(
         Allocator("greedy", "greedy (model)", {"model": m}),
         Allocator("static", "static (model optimum)", {"model": m}),
         *trained,
+        *extra,
     ]
+
+
+def takes_model(name: str) -> bool:
+    """Whether the factory of allocator `name` has a `model` parameter."""
+    return "model" in inspect.signature(REGISTRY.get(name).factory).parameters
 
 
 def models(settings: Settings) -> dict[str, CompletionModel]:
@@ -200,7 +227,7 @@ def trial_spec(
 ) -> TrialSpec:
     """The trial of allocator `name` on `preset` with `seed` (tagged with the three)."""
     s = settings.sized()
-    chosen = next(a for a in allocators(model, settings.network_paths(preset)) if a.name == name)
+    chosen = next(a for a in settings.compared(preset, model) if a.name == name)
     tags: dict[str, TagValue] = {"preset": preset, "allocator": name, "seed": seed}
     return TrialSpec(
         key=trial_key(tags),
@@ -220,7 +247,7 @@ def specs(settings: Settings, by_preset: Mapping[str, CompletionModel]) -> list[
     return [
         trial_spec(settings, by_preset[p], p, a.name, seed)
         for p in settings.presets
-        for a in allocators(by_preset[p], settings.network_paths(p))
+        for a in settings.compared(p, by_preset[p])
         for seed in range(trials)
     ]
 
@@ -235,7 +262,7 @@ def run(settings: Settings) -> Outcome:
     summary: list[dict[str, Any]] = []
     sections = []
     for preset in settings.presets:
-        compared = allocators(by_preset[preset], settings.network_paths(preset))
+        compared = settings.compared(preset, by_preset[preset])
         rows = summarise([r for r in per_trial if r["preset"] == preset], compared)
         summary += rows
         sections.append(preset_section(rows, by_preset[preset], preset))

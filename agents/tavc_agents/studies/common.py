@@ -22,12 +22,14 @@ from typing import Annotated, Any, Literal, TypeVar
 
 import tyro
 
-from tavc_agents.experiments.provenance import PACKAGE_ROOT, run_recorded
+from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TRIALS, TrialSpec
 
-RESULTS_DIR = PACKAGE_ROOT / "benchmarks" / "results"
-"""The committed reference results (changed only with `--update-reference`)."""
+RESULTS_DIR = (CHECKOUT or Path()) / "benchmarks" / "results"
+"""The committed reference results of the source checkout (changed only with `--update-reference`).
+An installed wheel has none: then `benchmarks/results` under the working directory, which a run
+only reads (to compare its tables with, if it exists), as `RUNS_DIR` is relative to it too."""
 RUNS_DIR = Path("runs")
 """Where a study writes by default: `runs/<study>-<UTC time>/` under the working directory
 (ignored by git in a checkout)."""
@@ -72,6 +74,12 @@ class SweepOptions:
                 f"{' and '.join(given)} are invalid together; allowed: at most one of --out "
                 "(a folder of your choice), --resume (an earlier run's folder), "
                 "--update-reference"
+            )
+        if self.update_reference and CHECKOUT is None:
+            raise ValueError(
+                "--update-reference is invalid here: it rewrites the committed reference results "
+                "of a source checkout, and this package is installed (not run from a checkout); "
+                "allowed: --out FOLDER, or a new run folder (the default)"
             )
         if self.resume is not None and not Path(self.resume).is_dir():
             raise ValueError(
@@ -207,7 +215,12 @@ def run_study(
         print(line, file=sys.stderr)
     print(f"\nResults in {outcome.out_dir}/")
     reference = settings.reference_dir()
-    if Path(outcome.out_dir).resolve() != reference.resolve():
+    if CHECKOUT is None and not reference.is_dir():
+        print(
+            "Not compared with the committed reference: it is part of a source checkout "
+            "(benchmarks/results/), and this package is installed."
+        )
+    elif Path(outcome.out_dir).resolve() != reference.resolve():
         compare = getattr(module, "agreement", compare_tables)
         for line in compare(Path(outcome.out_dir), reference):
             print(line)

@@ -9,9 +9,12 @@ The check: the predicted optimum, its neighbours (one robot moved) and the next-
 run as static allocations in the full arena (`--check-seeds` runs each); the measured delivered
 value per robot per 10 s is set beside the model's prediction.
 
-Outputs in `benchmarks/results/tavc_model/<preset>/` (the committed reference; a run writes into a new `runs/` folder unless `--update-reference` or `--out`): `model.json` (the model, read
-by the allocators and vacancy_chain studies), `slot_values.{md,csv,json}`, `group_runs.csv` (every
-run's rate), `check.{md,csv,json}`. Finished runs are kept in `cache/` (not committed), so an
+Outputs in `benchmarks/results/tavc_model/<preset>/` (the committed reference; a run writes into a
+new `runs/` folder unless `--update-reference` or `--out`): `slot_values.{md,csv,json}`,
+`group_runs.csv` (every run's rate), `check.{md,csv,json}`, and `model.json` (the model, read by the
+model-based allocators, `tavc trial` and the allocators and vacancy_chain studies). The reference
+model ships with the package as `tavc_agents/data/models/<preset>.json`, and
+`--update-reference` writes it there. Finished runs are kept in `cache/` (not committed), so an
 interrupted run resumes.
 
     python benchmarks/tavc_model.py                                        # dahl2004
@@ -43,6 +46,7 @@ from tavc_agents.model import (
     CompletionModel,
     SpeedClasses,
     model_from_runs,
+    model_path,
     robot_circuits,
 )
 from tavc_agents.studies.common import (
@@ -109,26 +113,9 @@ def _finite(x: float) -> bool:
 
 
 def model_dir(preset: str) -> Path:
-    """Where the committed model of `preset` and its reports live."""
+    """Where the committed reports of the model of `preset` live (the model itself ships with the
+    package: `tavc_agents.model.REFERENCE_MODELS`)."""
     return RESULTS_DIR / "tavc_model" / preset
-
-
-def model_path(preset: str, path: Path | None = None) -> Path:
-    """`path`, or the committed model of `preset`."""
-    return path if path is not None else model_dir(preset) / "model.json"
-
-
-def missing_model(preset: str, path: Path | None = None) -> str | None:
-    """Why the model at `path` (default: the committed one of `preset`) cannot be used, or None."""
-    where = model_path(preset, path)
-    if where.exists():
-        return None
-    return f"{where} is missing; run `python benchmarks/tavc_model.py --preset {preset}` first"
-
-
-def load_model(preset: str, path: Path | None = None) -> CompletionModel:
-    """The model at `path` (default: the committed model of `preset`)."""
-    return CompletionModel.load(model_path(preset, path))
 
 
 def check_allocations(model: CompletionModel, top: int) -> list[Allocation]:
@@ -183,7 +170,10 @@ def run(settings: Settings) -> Outcome:
     results, meta = run_trials(specs, out / "cache" / "groups", settings, settings.recorded())
     model = model_from_runs(config, group_runs(specs, results))
     written = [write_csv_path(out / "group_runs.csv", group_rows(specs, results, config))]
-    written.append(write_text(out / "model.json", json.dumps(model.to_dict(), indent=1) + "\n"))
+    # The reference model is package data (the allocators' default, also in an installed wheel),
+    # its one copy; a run folder gets its own model.json
+    model_file = model_path(settings.preset) if settings.update_reference else out / "model.json"
+    written.append(write_text(model_file, json.dumps(model.to_dict(), indent=1) + "\n"))
     written += slot_report(model, settings.preset).write(out, meta)
 
     allocations = check_allocations(model, settings.top)

@@ -48,7 +48,7 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_c
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.runner import Event, TrialResult
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
-from tavc_agents.model import CompletionModel, SpeedClasses
+from tavc_agents.model import CompletionModel, SpeedClasses, load_model, missing_model
 from tavc_agents.studies.common import (
     RESULTS_DIR,
     Outcome,
@@ -57,7 +57,6 @@ from tavc_agents.studies.common import (
     run_trials,
 )
 from tavc_agents.studies.row_check import compare_rows, run_fresh, sample_rows
-from tavc_agents.studies.tavc_model import load_model, missing_model
 from tavc_env import make_config
 
 PRESET = "dahl2004"

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from tavc_agents.learners.network import Mlp
+from tavc_agents.model import load_model
 from tavc_agents.studies import allocators, tavc_model, vacancy_chain
 from tavc_agents.studies.common import RESULTS_DIR
 
@@ -264,7 +265,7 @@ def test_quick_sizes_and_folders() -> None:
 
 def test_trial_keys_keep_their_old_form() -> None:
     s = allocators.Settings()
-    model = tavc_model.load_model("dahl2004")
+    model = load_model("dahl2004")
     spec = allocators.trial_spec(s, model, "dahl2004", "softmax_tavc", 4)
     assert spec.key == "dahl2004__softmax_tavc_s4"
     assert dict(spec.tags) == {"preset": "dahl2004", "allocator": "softmax_tavc", "seed": 4}
