@@ -605,11 +605,10 @@ class TwinArenaEnv(TavcArenaEnv):
     Args:
         tables: the arena's `InterferenceTables` (or their `to_dict()`), for the team and
             circuits of the configuration.
-        render_mode: must be None (the twin draws nothing).
-        **env_kwargs: `TavcArenaEnv`'s other arguments (`preset`, `config`, `max_cycles`,
-            `max_sim_time_s`, `decision_interval_s`, `reward_time_unit`, `step_cap_s`,
-            `jam_window_s` (accepted, unused: the twin never jams), `observation_mode`
-            (`paper` or `paper_id`), config overrides).
+        **env_kwargs: `TavcArenaEnv`'s arguments (`preset` or `config`, `options` and
+            overrides of the arena or the options), except that the `EnvOptions`' `render_mode`
+            must be None (the twin draws nothing) and `observation_mode` `paper` or `paper_id`;
+            `jam_window_s` is accepted, unused (the twin never jams).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -622,7 +621,6 @@ class TwinArenaEnv(TavcArenaEnv):
     def __init__(
         self,
         tables: InterferenceTables | Mapping[str, Any],
-        render_mode: str | None = None,
         **env_kwargs: Any,
     ) -> None:
         if isinstance(tables, Mapping):
@@ -633,16 +631,20 @@ class TwinArenaEnv(TavcArenaEnv):
             tables,
             "tavc_env.twin.InterferenceTables (or its to_dict())",
         )
-        require(render_mode is None, "render_mode", render_mode, "None (the twin draws nothing)")
-        mode = env_kwargs.get("observation_mode", "paper")
+        # TavcArenaEnv's own arguments and defaults, passed through rather than restated here
+        super().__init__(**env_kwargs)
         require(
-            mode != "rich",
+            self.render_mode is None,
+            "render_mode",
+            self.render_mode,
+            "None (the twin draws nothing)",
+        )
+        require(
+            self.options.observation_mode != "rich",
             "observation_mode",
-            mode,
+            self.options.observation_mode,
             "'paper' or 'paper_id' (the twin has no positions for 'rich')",
         )
-        # TavcArenaEnv's own arguments and defaults, passed through rather than restated here
-        super().__init__(render_mode=None, **env_kwargs)
         self.tables = tables
         self.process = TaskTimeProcess(self.config, tables)
         # The adapter (`TavcArenaEnv`) reads only what `TaskTimeProcess` offers of an engine.

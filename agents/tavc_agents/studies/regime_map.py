@@ -43,7 +43,7 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.provenance import run_metadata, run_recorded
 from tavc_agents.experiments.registry import make_allocator
-from tavc_agents.experiments.runner import run_trial
+from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.experiments.sweep import arena_digest, json_jobs, run_jobs, saved_results
 from tavc_agents.experiments.twin_tables import build_tables
 from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
@@ -274,7 +274,7 @@ def run_map_trial(job: MapTrial) -> dict[str, Any]:
         measured_s=job.measured_h * 3600.0,
         snapshot_every_s=(job.convergence_h + job.measured_h) * 3600.0,
         env_factory=factory,
-        **ARENAS[job.arena],
+        **env_arguments(ARENAS[job.arena]),
     )
     m = measure(result)
     return {
