@@ -596,6 +596,18 @@ def make_config(
     return base.replace(**changes) if changes else base
 
 
+def preset_overrides(config: ArenaConfig, preset_name: str) -> tuple[tuple[str, Any], ...]:
+    """The fields in which `config` differs from the preset `preset_name`, sorted by name (the
+    inverse of `make_config`: `make_config(preset_name, **dict(overrides))` rebuilds `config`)."""
+    base = preset(preset_name)
+    changed = [
+        (f.name, getattr(config, f.name))
+        for f in dataclasses.fields(ArenaConfig)
+        if getattr(config, f.name) != getattr(base, f.name)
+    ]
+    return tuple(sorted(changed, key=lambda item: item[0]))
+
+
 def robots_from_speeds(speeds: Sequence[float]) -> tuple[Robot, ...]:
     """Robots with the given top speeds, labelled fast / slow / medium relative to the mean speed."""
     require(

@@ -51,7 +51,7 @@ import math
 import weakref
 from array import array
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Generic, TypeVar
 
 import numpy as np
 from gymnasium import spaces
@@ -63,7 +63,8 @@ from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
-from tavc_env.engine.simulation import Advance, ArenaSnapshot, Simulation
+from tavc_env.engine.base import Advance, Engine
+from tavc_env.engine.simulation import ArenaSnapshot, Simulation
 from tavc_env.engine.tasks import PHASE_NAMES, Phase
 from tavc_env.observations import (
     N_PHASES,
@@ -78,29 +79,17 @@ ENV_NAME = "tavc_arena_v1"
 PHASES = tuple(PHASE_NAMES[p] for p in Phase)
 
 
-class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
-    """The prioritized transportation arena as a PettingZoo `ParallelEnv`.
+E = TypeVar("E", bound=Engine)
 
-    Args:
-        preset: name of a preset configuration (`tavc_env.PRESETS`; None: `dahl2004`).
-        config: a full `ArenaConfig` instead of a preset (giving both is a ValueError).
-        options: the env's `EnvOptions` (time limits, stepping, reward unit, jam window,
-            observation mode and format, render mode); None: the defaults.
-        **overrides: fields of `ArenaConfig` (and the shorthands `speeds`, `values`) changed from
-            the preset or config, and fields of `EnvOptions` changed from `options` (e.g.
-            `decision_interval_s=5.0`, `render_mode="rgb_array"`); any other key is a ValueError
-            naming it.
 
-    `copy.deepcopy` and `pickle` of the env are exact at any point of an episode: they rebuild
-    the arena by replaying the episode from its reset (see "Copying" in the module's docstring).
+class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
+    """The PettingZoo adapter of any arena engine (`tavc_env.engine.base.Engine`): agents, spaces,
+    stepping, rewards, infos, failures, priorities and copying, the same whatever the engine.
+
+    A subclass says which engine (`_new_engine`) and what its global state is (`_state_space`,
+    `state`, `snapshot`): `TavcArenaEnv` (the physics) and `tavc_env.twin.TwinArenaEnv` (the
+    model twin). Arguments: `TavcArenaEnv`'s.
     """
-
-    metadata: ClassVar[dict[str, Any]] = {
-        "name": ENV_NAME,
-        "render_modes": list(RENDER_MODES),
-        "render_fps": 10,
-        "is_parallelizable": True,
-    }
 
     def __init__(
         self,
@@ -129,15 +118,8 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         }
         self._busy_mask = [frozen(np.eye(m, dtype=np.int8)[c]) for c in range(m)]
         self._free_mask = frozen(np.ones(m, np.int8))
-        per_robot = 6 + m + N_PHASES
-        size = n * per_robot + 2 * 2 * m
-        low = np.zeros(size, np.float32)
-        high = np.ones(size, np.float32)
-        for i in range(n):
-            low[i * per_robot + 2 : i * per_robot + 6] = -1.0
-        self.state_space = spaces.Box(low, high, (size,), np.float32)
-
-        self.sim = Simulation(self.config, jam_window_s=self.options.jam_window_s)
+        self.state_space = self._state_space()
+        self.sim: E = self._new_engine()
         self._rng: np.random.Generator | None = None
         self._history: _History | None = None  # what was done to the arena since reset
         self.num_cycles = 0
@@ -213,22 +195,21 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             self.agents = []
         return observations, rewards, terminations, truncations, infos
 
+    # -- what the engine decides ---------------------------------------------------------------
+    def _new_engine(self) -> E:
+        """The engine this env drives, for `self.config` and `self.options`."""
+        raise NotImplementedError
+
+    def _state_space(self) -> spaces.Box:
+        """The space of `state()`."""
+        raise NotImplementedError
+
     def state(self) -> np.ndarray:
-        """Global state: per robot [x/W, y/H, cos h, sin h, vx/v, vy/v, circuit one-hot, phase
-        one-hot]; per station [fraction of its bays occupied, line length / n_robots].
-        Velocities are divided by the robot's top speed and clipped to [-1, 1] (contacts can
-        briefly push a robot faster)."""
-        if self._rng is None:
-            raise ValueError("state() called before reset(); allowed: call reset() first")
-        cfg = self.config
-        sim = self.sim
-        n, m = cfg.n_robots, cfg.n_circuits
-        robots = np.zeros((n, 6 + m + N_PHASES), np.float32)
-        robots[:, :6] = pose_features(sim, cfg, sim.speeds[:, None])
-        robots[np.arange(n), 6 + sim.tasks.circuit] = 1.0
-        robots[np.arange(n), 6 + m + sim.tasks.phase] = 1.0
-        stations = np.array([[st.busy, len(st.line) / n] for st in sim.tasks.stations], np.float32)
-        return np.concatenate([robots.ravel(), stations.ravel()])
+        raise NotImplementedError
+
+    def snapshot(self) -> ArenaSnapshot:
+        """The arena now: positions, headings, targets, circuits, phases (copies)."""
+        raise NotImplementedError
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -242,7 +223,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             from tavc_env.render import Renderer  # pygame is an optional extra: import lazily
 
             self._renderer = Renderer(self.config, self.render_mode)
-        frame: np.ndarray | None = self._renderer.draw(self.sim.snapshot(), self.delivered_value)
+        frame: np.ndarray | None = self._renderer.draw(self.snapshot(), self.delivered_value)
         return frame
 
     def close(self) -> None:
@@ -323,10 +304,6 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         """Escape manoeuvres of stuck robots since `reset` (see `tavc_env.engine.navigation`)."""
         return self.sim.escapes
 
-    def snapshot(self) -> ArenaSnapshot:
-        """The arena now: positions, headings, targets, circuits, phases (copies)."""
-        return self.sim.snapshot()
-
     # -- task priorities -----------------------------------------------------------------------
     @property
     def circuit_values(self) -> tuple[float, ...]:
@@ -357,8 +334,11 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
-        # `sim` was rebuilt by replay (`_rebuild_simulation`): its generator is the env's
+        # the copied engine (rebuilt by replay for the physics, `_rebuild_simulation`) carries
+        # the copied episode: its generator is the env's, its history the copy's
         self._rng = self.sim.rng if state["_rng"] else None
+        if self._history is not None:
+            _HISTORIES[self.sim] = self._history
 
     def _recorder(self) -> _History:
         """The history of this episode, or a ValueError if the env was never reset."""
@@ -477,6 +457,65 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         return infos
 
 
+class TavcArenaEnv(ArenaEnv[Simulation]):
+    """The prioritized transportation arena as a PettingZoo `ParallelEnv`.
+
+    Args:
+        preset: name of a preset configuration (`tavc_env.PRESETS`; None: `dahl2004`).
+        config: a full `ArenaConfig` instead of a preset (giving both is a ValueError).
+        options: the env's `EnvOptions` (time limits, stepping, reward unit, jam window,
+            observation mode and format, render mode); None: the defaults.
+        **overrides: fields of `ArenaConfig` (and the shorthands `speeds`, `values`) changed from
+            the preset or config, and fields of `EnvOptions` changed from `options` (e.g.
+            `decision_interval_s=5.0`, `render_mode="rgb_array"`); any other key is a ValueError
+            naming it.
+
+    `copy.deepcopy` and `pickle` of the env are exact at any point of an episode: they rebuild
+    the arena by replaying the episode from its reset (see "Copying" in the module's docstring).
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": ENV_NAME,
+        "render_modes": list(RENDER_MODES),
+        "render_fps": 10,
+        "is_parallelizable": True,
+    }
+
+    def _new_engine(self) -> Simulation:
+        return Simulation(self.config, jam_window_s=self.options.jam_window_s)
+
+    def _state_space(self) -> spaces.Box:
+        n, m = self.config.n_robots, self.config.n_circuits
+        per_robot = 6 + m + N_PHASES
+        size = n * per_robot + 2 * 2 * m
+        low = np.zeros(size, np.float32)
+        high = np.ones(size, np.float32)
+        for i in range(n):
+            low[i * per_robot + 2 : i * per_robot + 6] = -1.0
+        return spaces.Box(low, high, (size,), np.float32)
+
+    def state(self) -> np.ndarray:
+        """Global state: per robot [x/W, y/H, cos h, sin h, vx/v, vy/v, circuit one-hot, phase
+        one-hot]; per station [fraction of its bays occupied, line length / n_robots].
+        Velocities are divided by the robot's top speed and clipped to [-1, 1] (contacts can
+        briefly push a robot faster)."""
+        if self._rng is None:
+            raise ValueError("state() called before reset(); allowed: call reset() first")
+        cfg = self.config
+        sim = self.sim
+        n, m = cfg.n_robots, cfg.n_circuits
+        robots = np.zeros((n, 6 + m + N_PHASES), np.float32)
+        robots[:, :6] = pose_features(sim, cfg, sim.speeds[:, None])
+        robots[np.arange(n), 6 + sim.tasks.circuit] = 1.0
+        robots[np.arange(n), 6 + m + sim.tasks.phase] = 1.0
+        stations = np.array([[st.busy, len(st.line) / n] for st in sim.tasks.stations], np.float32)
+        return np.concatenate([robots.ravel(), stations.ravel()])
+
+    def snapshot(self) -> ArenaSnapshot:
+        """The arena now: positions, headings, targets, circuits, phases (copies)."""
+        return self.sim.snapshot()
+
+
 def completed_task_s(info: Mapping[str, Any]) -> float | None:
     """The time of the task a robot completed in the step its `info` reports, or None if it
     completed none (read from v1's `task_completed`, or v0's None; None where neither is)."""
@@ -503,7 +542,7 @@ class AecArenaEnv(parallel_to_aec_wrapper):
     once and nothing is stored: the env is as it was, and a good action continues the cycle.
     """
 
-    def __init__(self, arena: TavcArenaEnv) -> None:
+    def __init__(self, arena: ArenaEnv[Any]) -> None:
         super().__init__(arena)
         self.arena = arena
 
@@ -566,7 +605,7 @@ class _History:
         self.ops.extend((self.VALUES, len(self.values), 0))
         self.values.append(values)
 
-    def replay(self, sim: Simulation) -> None:
+    def replay(self, sim: Engine) -> None:
         """Do it all again to `sim`, which was just reset with a copy of `start_rng`."""
         ops, advances = self.ops, iter(self.durations)
         for k in range(0, len(ops), 3):
@@ -587,7 +626,7 @@ class _History:
 
 # The history of every arena an env drives, by arena (a registry rather than an attribute, so the
 # engine knows nothing of it; an arena forgotten by everyone else leaves it).
-_HISTORIES: weakref.WeakKeyDictionary[Simulation, _History] = weakref.WeakKeyDictionary()
+_HISTORIES: weakref.WeakKeyDictionary[Engine, _History] = weakref.WeakKeyDictionary()
 # Attributes of a Simulation that are not its state: code, caches of other attributes, links.
 _NOT_STATE = frozenset(
     {"config", "world", "_rng", "_observers", "_steer", "_steer_args", "_steer_extra", "_bound"}

@@ -10,7 +10,7 @@ random allocation. Beside each cell, the model twin's prediction (`tavc_env.twin
 measured in the same arena): a what-if tool, never a substitute for the physics columns.
 
 Each arena's e is measured first (`tavc_agents.studies.elasticity.measure_elasticity`, the interference
-study's runs and settings), then its twin tables (`tavc_agents.experiments.twin_tables.build_tables`).
+study's runs and settings), then its twin tables (`tavc_env.twin.build_tables`).
 The cells that decide the question (softmax T = 0.005 and 0.01 on `dahl2004_congestion` and on
 `dahl2004`) get `decisive_trials` physics trials; the congestion arena's run first, then the
 twin's trials, then `dahl2004`'s decisive cells and the rest. Every other cell gets `trials`.
@@ -45,11 +45,10 @@ from tavc_agents.experiments.provenance import run_metadata, run_recorded
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.experiments.sweep import arena_digest, json_jobs, run_jobs, saved_results
-from tavc_agents.experiments.twin_tables import build_tables
 from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
 from tavc_agents.studies.elasticity import measure_elasticity
 from tavc_env import metrics
-from tavc_env.twin import InterferenceTables
+from tavc_env.twin import InterferenceTables, build_tables
 
 ARENAS: Mapping[str, Mapping[str, Any]] = {
     "dahl2004": {"preset": "dahl2004"},
