@@ -5,6 +5,9 @@ PettingZoo environment on pymunk physics.
     env = tavc_env.parallel_env(preset="dahl2004")
     observations, infos = env.reset(seed=0)
 
+The arena is an `ArenaConfig` (a preset, or `config=`), the env's own options an `EnvOptions`
+(`options=`); keyword overrides of either go straight to `parallel_env`.
+
 `tavc_env.twin_parallel_env(tables=..., preset=...)` is the model twin: the same decision process
 with task times drawn from measured interference tables (`tavc_env.twin`), for fast what-if
 studies; never a replacement for the physics.
@@ -33,6 +36,7 @@ from tavc_env.env import (
     raw_env,
 )
 from tavc_env.observations import OBSERVATION_FORMATS, OBSERVATION_MODES
+from tavc_env.options import EnvOptions
 from tavc_env.registration import REGISTRY_ID, REGISTRY_ID_V0, register
 from tavc_env.twin import InterferenceTables, TaskTimeCell, TwinArenaEnv, twin_parallel_env
 
@@ -51,6 +55,7 @@ __all__ = [
     "ArenaConfig",
     "Breakdown",
     "Circuit",
+    "EnvOptions",
     "InterferenceTables",
     "Robot",
     "Simulation",

@@ -2,7 +2,7 @@
 
 Everything physical about an arena lives here (geometry, robots, stations, controller limits, the
 physics step and scheduled breakdowns). RL-facing options (time limits, reward units, stepping mode)
-are arguments of the environment, not of the arena.
+are the environment's, not the arena's (`tavc_env.options.EnvOptions`).
 """
 
 from __future__ import annotations
@@ -538,6 +538,12 @@ PRESETS: Mapping[str, Any] = {
 }
 
 
+DEFAULT_PRESET = "dahl2004"
+# What an override may name: a field of `ArenaConfig`, or a shorthand of `make_config`.
+ARENA_FIELDS = frozenset(f.name for f in dataclasses.fields(ArenaConfig))
+ARENA_KEYS = ARENA_FIELDS | {"speeds", "values"}
+
+
 def preset(name: str) -> ArenaConfig:
     """The named preset's configuration."""
     require(isinstance(name, str) and name in PRESETS, "preset", name, f"one of {sorted(PRESETS)}")
@@ -546,24 +552,33 @@ def preset(name: str) -> ArenaConfig:
 
 
 def make_config(
-    preset_name: str = "dahl2004", config: ArenaConfig | None = None, **overrides: Any
+    preset_name: str | None = None, config: ArenaConfig | None = None, **overrides: Any
 ) -> ArenaConfig:
-    """Build a configuration from a preset (or a given `config`) and field overrides.
+    """Build a configuration from a preset (None: `dahl2004`) or a given `config` (not both), and
+    field overrides.
 
     Besides the fields of `ArenaConfig`, two shorthands are accepted: `speeds` (one top speed per
     robot; classes are labelled fast/slow/medium by comparison with the mean) and `values` (one value
     per circuit, keeping the geometry). Unknown keys raise a ValueError listing what is allowed.
     """
-    base = config if config is not None else preset(preset_name)
-    require(isinstance(base, ArenaConfig), "config", base, "a tavc_env.ArenaConfig or None")
-    fields = {f.name for f in dataclasses.fields(ArenaConfig)}
-    shorthands = {"speeds", "values"}
-    unknown = sorted(set(overrides) - fields - shorthands)
-    if unknown:
-        raise ValueError(
-            f"unknown configuration key(s) {unknown}; allowed: {sorted(fields | shorthands)}"
+    if config is not None:
+        require(
+            preset_name is None,
+            "preset",
+            preset_name,
+            "None when a config is given (the config is the whole arena; change it with "
+            "overrides or config.replace)",
         )
-    changes = {k: v for k, v in overrides.items() if k in fields}
+        require(isinstance(config, ArenaConfig), "config", config, "a tavc_env.ArenaConfig or None")
+    base = (
+        config
+        if config is not None
+        else preset(DEFAULT_PRESET if preset_name is None else preset_name)
+    )
+    unknown = sorted(set(overrides) - ARENA_KEYS)
+    if unknown:
+        raise ValueError(f"unknown configuration key(s) {unknown}; allowed: {sorted(ARENA_KEYS)}")
+    changes = {k: v for k, v in overrides.items() if k in ARENA_FIELDS}
     if "speeds" in overrides:
         require(
             "robots" not in overrides, "speeds", overrides["speeds"], "speeds or robots, not both"
@@ -582,6 +597,18 @@ def make_config(
             dataclasses.replace(c, value=v) for c, v in zip(circuits, values)
         )
     return base.replace(**changes) if changes else base
+
+
+def preset_overrides(config: ArenaConfig, preset_name: str) -> tuple[tuple[str, Any], ...]:
+    """The fields in which `config` differs from the preset `preset_name`, sorted by name (the
+    inverse of `make_config`: `make_config(preset_name, **dict(overrides))` rebuilds `config`)."""
+    base = preset(preset_name)
+    changed = [
+        (f.name, getattr(config, f.name))
+        for f in dataclasses.fields(ArenaConfig)
+        if getattr(config, f.name) != getattr(base, f.name)
+    ]
+    return tuple(sorted(changed, key=lambda item: item[0]))
 
 
 def robots_from_speeds(speeds: Sequence[float]) -> tuple[Robot, ...]:

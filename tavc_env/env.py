@@ -51,7 +51,7 @@ import math
 import weakref
 from array import array
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Generic, TypeVar
 
 import numpy as np
 from gymnasium import spaces
@@ -62,145 +62,53 @@ from pettingzoo.utils.env import AECEnv
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from tavc_env._validation import is_integer, is_number, require
-from tavc_env.config import ArenaConfig, make_config
-from tavc_env.engine.simulation import JAM_WINDOW_S, Advance, ArenaSnapshot, Simulation
+from tavc_env.config import ArenaConfig
+from tavc_env.engine.base import Advance, Engine
+from tavc_env.engine.simulation import ArenaSnapshot, Simulation
 from tavc_env.engine.tasks import PHASE_NAMES, Phase
 from tavc_env.observations import (
     N_PHASES,
     ObservationBuilder,
-    check_observation_args,
     frozen,
     pose_features,
 )
+from tavc_env.options import RENDER_MODES, TIME_UNITS, EnvOptions, resolve_env_args
 
 ENV_NAME = "tavc_arena_v1"
-RENDER_MODES = ("human", "rgb_array")
-TIME_UNITS = {"ms": 1000.0, "s": 1.0}
 # The names of the `phase` codes in infos: PHASES[info["phase"]]
 PHASES = tuple(PHASE_NAMES[p] for p in Phase)
 
 
-class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
-    """The prioritized transportation arena as a PettingZoo `ParallelEnv`.
+E = TypeVar("E", bound=Engine)
 
-    Args:
-        preset: name of a preset configuration (`dahl2004`, `dahl2004_homogeneous`).
-        config: a full `ArenaConfig` instead of the preset.
-        render_mode: None, "human" or "rgb_array".
-        max_cycles: truncate after this many `step` calls.
-        max_sim_time_s: truncate when simulated time reaches this (default 24 h).
-        decision_interval_s: None for event-driven stepping, else the fixed simulated time per step.
-        reward_time_unit: "ms" (default, the paper's scale) or "s" for t in `w / t`.
-        step_cap_s: event-driven steps return after at most this much simulated time.
-        jam_window_s: the jam detector's window: no task event for this long while no moving
-            robot gets 1 m from where it was is a jam, reported as `jammed` in every info
-            (math.inf: off).
-        observation_mode: "paper" (default: the paper's one-hot), "paper_id" or "rich" (see
-            `tavc_env.observations` for what each reveals).
-        observation_format: "dict" (observation + action_mask) or "box" (the vector alone).
-        **overrides: fields of `ArenaConfig` (and the shorthands `speeds`, `values`).
 
-    `copy.deepcopy` and `pickle` of the env are exact at any point of an episode: they rebuild
-    the arena by replaying the episode from its reset (see "Copying" in the module's docstring).
+class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
+    """The PettingZoo adapter of any arena engine (`tavc_env.engine.base.Engine`): agents, spaces,
+    stepping, rewards, infos, failures, priorities and copying, the same whatever the engine.
+
+    A subclass says which engine (`_new_engine`) and what its global state is (`_state_space`,
+    `state`, `snapshot`): `TavcArenaEnv` (the physics) and `tavc_env.twin.TwinArenaEnv` (the
+    model twin). Arguments: `TavcArenaEnv`'s.
     """
-
-    metadata: ClassVar[dict[str, Any]] = {
-        "name": ENV_NAME,
-        "render_modes": list(RENDER_MODES),
-        "render_fps": 10,
-        "is_parallelizable": True,
-    }
 
     def __init__(
         self,
-        preset: str = "dahl2004",
+        preset: str | None = None,
         config: ArenaConfig | None = None,
-        render_mode: str | None = None,
-        max_cycles: int = 100_000,
-        max_sim_time_s: float = 24 * 3600.0,
-        decision_interval_s: float | None = None,
-        reward_time_unit: str = "ms",
-        step_cap_s: float = 600.0,
-        jam_window_s: float = JAM_WINDOW_S,
-        observation_mode: str = "paper",
-        observation_format: str = "dict",
+        options: EnvOptions | None = None,
         **overrides: Any,
     ) -> None:
-        check_observation_args(observation_mode, observation_format)
-        self.config = make_config(preset, config, **overrides)
-        dt = self.config.dt
-        require(
-            render_mode is None or render_mode in RENDER_MODES,
-            "render_mode",
-            render_mode,
-            f"None or one of {list(RENDER_MODES)}",
-        )
-        require(
-            is_integer(max_cycles) and max_cycles >= 1, "max_cycles", max_cycles, "an integer >= 1"
-        )
-        longest = self.config.max_time_s  # what a float resolves (ArenaConfig.max_time_s)
-        resolved = f"at most {longest:.4g} s, beyond which a float no longer resolves dt / 1e6"
-        require(
-            max_sim_time_s == math.inf
-            or (is_number(max_sim_time_s) and dt <= max_sim_time_s <= longest),
-            "max_sim_time_s",
-            max_sim_time_s,
-            f"a time >= one physics step ({dt} s) and {resolved}, or math.inf",
-        )
-        if decision_interval_s is not None:
-            steps = decision_interval_s / dt if is_number(decision_interval_s) else 0.0
-            require(
-                steps >= 1 - 1e-9 and abs(steps - round(steps)) < 1e-6,
-                "decision_interval_s",
-                decision_interval_s,
-                "None (event-driven) or a finite whole number of physics steps "
-                f"(multiples of dt = {dt} s)",
-            )
-            episode = min(float(max_sim_time_s), longest)
-            require(
-                decision_interval_s <= episode * (1 + 1e-9),
-                "decision_interval_s",
-                decision_interval_s,
-                f"an interval of at most max_sim_time_s = {max_sim_time_s:g} s (a longer one "
-                "would end the episode at its first step)"
-                if max_sim_time_s != math.inf
-                else f"an interval {resolved}",
-            )
-        require(
-            isinstance(reward_time_unit, str) and reward_time_unit in TIME_UNITS,
-            "reward_time_unit",
-            reward_time_unit,
-            str(list(TIME_UNITS)),
-        )
-        require(
-            is_number(step_cap_s) and dt <= step_cap_s <= longest,
-            "step_cap_s",
-            step_cap_s,
-            f"a finite time >= one physics step ({dt} s) and {resolved}",
-        )
-        require(
-            jam_window_s == math.inf or (is_number(jam_window_s) and jam_window_s > 0),
-            "jam_window_s",
-            jam_window_s,
-            "a time > 0 s, or math.inf (no jam detection)",
-        )
-        self.render_mode = render_mode
-        self.max_cycles = int(max_cycles)
-        self.max_sim_time_s = float(max_sim_time_s)
-        self.decision_interval_s = decision_interval_s
-        self.reward_time_unit = reward_time_unit
-        self.step_cap_s = float(step_cap_s)
+        self.config, self.options = resolve_env_args(preset, config, options, **overrides)
+        self.render_mode = self.options.render_mode
 
         n, m = self.config.n_robots, self.config.n_circuits
         self.possible_agents = [f"robot_{i}" for i in range(n)]
         self.agents: list[str] = []
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
-        self.observation_mode = observation_mode
-        self.observation_format = observation_format
-        self._builder = ObservationBuilder(self.config, observation_mode)
+        self._builder = ObservationBuilder(self.config, self.options.observation_mode)
         vector = self._builder.space
         space: spaces.Space[Any] = vector
-        if observation_format == "dict":
+        if self.options.observation_format == "dict":
             space = spaces.Dict(
                 {"observation": vector, "action_mask": spaces.Box(0, 1, (m,), np.int8)}
             )
@@ -210,15 +118,8 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         }
         self._busy_mask = [frozen(np.eye(m, dtype=np.int8)[c]) for c in range(m)]
         self._free_mask = frozen(np.ones(m, np.int8))
-        per_robot = 6 + m + N_PHASES
-        size = n * per_robot + 2 * 2 * m
-        low = np.zeros(size, np.float32)
-        high = np.ones(size, np.float32)
-        for i in range(n):
-            low[i * per_robot + 2 : i * per_robot + 6] = -1.0
-        self.state_space = spaces.Box(low, high, (size,), np.float32)
-
-        self.sim = Simulation(self.config, jam_window_s=float(jam_window_s))
+        self.state_space = self._state_space()
+        self.sim: E = self._new_engine()
         self._rng: np.random.Generator | None = None
         self._history: _History | None = None  # what was done to the arena since reset
         self.num_cycles = 0
@@ -273,17 +174,18 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             self.sim.choose(i, circuit)
             history.choose(i, circuit)
 
-        remaining = self.max_sim_time_s - self.sim.time_s
-        if self.decision_interval_s is None:
-            duration, stop = min(self.step_cap_s, remaining), True
+        opts = self.options
+        remaining = opts.max_sim_time_s - self.sim.time_s
+        if opts.decision_interval_s is None:
+            duration, stop = min(opts.step_cap_s, remaining), True
         else:
-            duration, stop = min(self.decision_interval_s, remaining), False
+            duration, stop = min(opts.decision_interval_s, remaining), False
         out = self.sim.advance(duration, stop_on_decision=stop)
         history.advance(duration, stop)
         rewards = self._rewards(out)
         self.num_cycles += 1
         truncated = (
-            self.num_cycles >= self.max_cycles or self.sim.time_s >= self.max_sim_time_s - 1e-9
+            self.num_cycles >= opts.max_cycles or self.sim.time_s >= opts.max_sim_time_s - 1e-9
         )
         observations = self._observations()
         infos = self._infos(truncated)
@@ -293,22 +195,21 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             self.agents = []
         return observations, rewards, terminations, truncations, infos
 
+    # -- what the engine decides ---------------------------------------------------------------
+    def _new_engine(self) -> E:
+        """The engine this env drives, for `self.config` and `self.options`."""
+        raise NotImplementedError
+
+    def _state_space(self) -> spaces.Box:
+        """The space of `state()`."""
+        raise NotImplementedError
+
     def state(self) -> np.ndarray:
-        """Global state: per robot [x/W, y/H, cos h, sin h, vx/v, vy/v, circuit one-hot, phase
-        one-hot]; per station [fraction of its bays occupied, line length / n_robots].
-        Velocities are divided by the robot's top speed and clipped to [-1, 1] (contacts can
-        briefly push a robot faster)."""
-        if self._rng is None:
-            raise ValueError("state() called before reset(); allowed: call reset() first")
-        cfg = self.config
-        sim = self.sim
-        n, m = cfg.n_robots, cfg.n_circuits
-        robots = np.zeros((n, 6 + m + N_PHASES), np.float32)
-        robots[:, :6] = pose_features(sim, cfg, sim.speeds[:, None])
-        robots[np.arange(n), 6 + sim.tasks.circuit] = 1.0
-        robots[np.arange(n), 6 + m + sim.tasks.phase] = 1.0
-        stations = np.array([[st.busy, len(st.line) / n] for st in sim.tasks.stations], np.float32)
-        return np.concatenate([robots.ravel(), stations.ravel()])
+        raise NotImplementedError
+
+    def snapshot(self) -> ArenaSnapshot:
+        """The arena now: positions, headings, targets, circuits, phases (copies)."""
+        raise NotImplementedError
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -322,7 +223,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             from tavc_env.render import Renderer  # pygame is an optional extra: import lazily
 
             self._renderer = Renderer(self.config, self.render_mode)
-        frame: np.ndarray | None = self._renderer.draw(self.sim.snapshot(), self.delivered_value)
+        frame: np.ndarray | None = self._renderer.draw(self.snapshot(), self.delivered_value)
         return frame
 
     def close(self) -> None:
@@ -348,6 +249,40 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         self.sim.schedule_repair(i)
         history.repair(i)
 
+    # -- the options, one by one (read-only: `options` holds them) -----------------------------
+    @property
+    def max_cycles(self) -> int:
+        return self.options.max_cycles
+
+    @max_cycles.setter
+    def max_cycles(self, value: int) -> None:
+        # PettingZoo's parallel_api_test sets it; the options stay one validated value
+        self.options = self.options.replace(max_cycles=value)
+
+    @property
+    def max_sim_time_s(self) -> float:
+        return self.options.max_sim_time_s
+
+    @property
+    def decision_interval_s(self) -> float | None:
+        return self.options.decision_interval_s
+
+    @property
+    def step_cap_s(self) -> float:
+        return self.options.step_cap_s
+
+    @property
+    def reward_time_unit(self) -> str:
+        return self.options.reward_time_unit
+
+    @property
+    def observation_mode(self) -> str:
+        return self.options.observation_mode
+
+    @property
+    def observation_format(self) -> str:
+        return self.options.observation_format
+
     # -- read-only views of the arena ----------------------------------------------------------
     @property
     def sim_time_s(self) -> float:
@@ -368,10 +303,6 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
     def escapes(self) -> int:
         """Escape manoeuvres of stuck robots since `reset` (see `tavc_env.engine.navigation`)."""
         return self.sim.escapes
-
-    def snapshot(self) -> ArenaSnapshot:
-        """The arena now: positions, headings, targets, circuits, phases (copies)."""
-        return self.sim.snapshot()
 
     # -- task priorities -----------------------------------------------------------------------
     @property
@@ -403,8 +334,11 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
-        # `sim` was rebuilt by replay (`_rebuild_simulation`): its generator is the env's
+        # the copied engine (rebuilt by replay for the physics, `_rebuild_simulation`) carries
+        # the copied episode: its generator is the env's, its history the copy's
         self._rng = self.sim.rng if state["_rng"] else None
+        if self._history is not None:
+            _HISTORIES[self.sim] = self._history
 
     def _recorder(self) -> _History:
         """The history of this episode, or a ValueError if the env was never reset."""
@@ -468,7 +402,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
     def _rewards(self, out: Advance) -> dict[str, float]:
         rewards = dict.fromkeys(self.agents, 0.0)
         self._last_task_time[:] = math.nan
-        unit = TIME_UNITS[self.reward_time_unit]
+        unit = TIME_UNITS[self.options.reward_time_unit]
         values = self.sim.tasks.values
         for c in out.completions:
             agent = self.possible_agents[c.robot]
@@ -480,7 +414,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
 
     def _observations(self) -> dict[str, Any]:
         vectors = self._builder.build(self.sim, self._last_task_by_circuit)
-        if self.observation_format == "box":
+        if self.options.observation_format == "box":
             return {agent: vectors[self._index[agent]] for agent in self.agents}
         masks = self._masks()
         return {
@@ -500,7 +434,7 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
         now = self.sim.time_s
         deciding = tasks.needs_decision()
         jammed = bool(self.sim.jammed)
-        masks = self._masks() if self.observation_format == "box" else None
+        masks = self._masks() if self.options.observation_format == "box" else None
         infos: dict[str, dict[str, Any]] = {}
         for agent in self.agents:
             i = self._index[agent]
@@ -521,6 +455,65 @@ class TavcArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int]):
             if masks is not None:
                 infos[agent]["action_mask"] = masks[i]
         return infos
+
+
+class TavcArenaEnv(ArenaEnv[Simulation]):
+    """The prioritized transportation arena as a PettingZoo `ParallelEnv`.
+
+    Args:
+        preset: name of a preset configuration (`tavc_env.PRESETS`; None: `dahl2004`).
+        config: a full `ArenaConfig` instead of a preset (giving both is a ValueError).
+        options: the env's `EnvOptions` (time limits, stepping, reward unit, jam window,
+            observation mode and format, render mode); None: the defaults.
+        **overrides: fields of `ArenaConfig` (and the shorthands `speeds`, `values`) changed from
+            the preset or config, and fields of `EnvOptions` changed from `options` (e.g.
+            `decision_interval_s=5.0`, `render_mode="rgb_array"`); any other key is a ValueError
+            naming it.
+
+    `copy.deepcopy` and `pickle` of the env are exact at any point of an episode: they rebuild
+    the arena by replaying the episode from its reset (see "Copying" in the module's docstring).
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": ENV_NAME,
+        "render_modes": list(RENDER_MODES),
+        "render_fps": 10,
+        "is_parallelizable": True,
+    }
+
+    def _new_engine(self) -> Simulation:
+        return Simulation(self.config, jam_window_s=self.options.jam_window_s)
+
+    def _state_space(self) -> spaces.Box:
+        n, m = self.config.n_robots, self.config.n_circuits
+        per_robot = 6 + m + N_PHASES
+        size = n * per_robot + 2 * 2 * m
+        low = np.zeros(size, np.float32)
+        high = np.ones(size, np.float32)
+        for i in range(n):
+            low[i * per_robot + 2 : i * per_robot + 6] = -1.0
+        return spaces.Box(low, high, (size,), np.float32)
+
+    def state(self) -> np.ndarray:
+        """Global state: per robot [x/W, y/H, cos h, sin h, vx/v, vy/v, circuit one-hot, phase
+        one-hot]; per station [fraction of its bays occupied, line length / n_robots].
+        Velocities are divided by the robot's top speed and clipped to [-1, 1] (contacts can
+        briefly push a robot faster)."""
+        if self._rng is None:
+            raise ValueError("state() called before reset(); allowed: call reset() first")
+        cfg = self.config
+        sim = self.sim
+        n, m = cfg.n_robots, cfg.n_circuits
+        robots = np.zeros((n, 6 + m + N_PHASES), np.float32)
+        robots[:, :6] = pose_features(sim, cfg, sim.speeds[:, None])
+        robots[np.arange(n), 6 + sim.tasks.circuit] = 1.0
+        robots[np.arange(n), 6 + m + sim.tasks.phase] = 1.0
+        stations = np.array([[st.busy, len(st.line) / n] for st in sim.tasks.stations], np.float32)
+        return np.concatenate([robots.ravel(), stations.ravel()])
+
+    def snapshot(self) -> ArenaSnapshot:
+        """The arena now: positions, headings, targets, circuits, phases (copies)."""
+        return self.sim.snapshot()
 
 
 def completed_task_s(info: Mapping[str, Any]) -> float | None:
@@ -549,7 +542,7 @@ class AecArenaEnv(parallel_to_aec_wrapper):
     once and nothing is stored: the env is as it was, and a good action continues the cycle.
     """
 
-    def __init__(self, arena: TavcArenaEnv) -> None:
+    def __init__(self, arena: ArenaEnv[Any]) -> None:
         super().__init__(arena)
         self.arena = arena
 
@@ -612,7 +605,7 @@ class _History:
         self.ops.extend((self.VALUES, len(self.values), 0))
         self.values.append(values)
 
-    def replay(self, sim: Simulation) -> None:
+    def replay(self, sim: Engine) -> None:
         """Do it all again to `sim`, which was just reset with a copy of `start_rng`."""
         ops, advances = self.ops, iter(self.durations)
         for k in range(0, len(ops), 3):
@@ -633,7 +626,7 @@ class _History:
 
 # The history of every arena an env drives, by arena (a registry rather than an attribute, so the
 # engine knows nothing of it; an arena forgotten by everyone else leaves it).
-_HISTORIES: weakref.WeakKeyDictionary[Simulation, _History] = weakref.WeakKeyDictionary()
+_HISTORIES: weakref.WeakKeyDictionary[Engine, _History] = weakref.WeakKeyDictionary()
 # Attributes of a Simulation that are not its state: code, caches of other attributes, links.
 _NOT_STATE = frozenset(
     {"config", "world", "_rng", "_observers", "_steer", "_steer_args", "_steer_extra", "_bound"}

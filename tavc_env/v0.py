@@ -27,12 +27,12 @@ class TavcArenaEnvV0(TavcArenaEnv):
     metadata: ClassVar[dict[str, Any]] = {**TavcArenaEnv.metadata, "name": ENV_NAME_V0}
 
     def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
         for name, v0 in (("observation_mode", "paper"), ("observation_format", "dict")):
-            value = kwargs.get(name, v0)
+            value = getattr(self.options, name)
             require(
                 value == v0, name, value, f"{v0!r} (v0 has no other; use tavc_env.parallel_env)"
             )
-        super().__init__(**kwargs)
 
     def _infos(self, truncated: bool) -> dict[str, dict[str, Any]]:
         infos = super()._infos(truncated)

@@ -23,9 +23,15 @@ LAYERS: list[tuple[int, str]] = [
     (0, "tavc_env.config"),
     (0, "tavc_env.metrics"),
     (1, "tavc_env.engine"),
+    (1, "tavc_env.twin.tables"),  # the model twin's engine and its tables: engine-level
+    (1, "tavc_env.twin.engine"),
     (2, "tavc_env.render"),
     (2, "tavc_env.observations"),
+    (2, "tavc_env.options"),  # the env's own options, beside the arena's config
+    (2, "tavc_env.measurement"),  # fixed-allocation runs of the physics engine
+    (2, "tavc_env.twin.measure"),  # the twin's tables measured with them
     (3, "tavc_env.env"),
+    (3, "tavc_env.twin"),  # the twin's env (and the package's public names)
     (3, "tavc_env.registration"),
     (3, "tavc_env.v0"),
     (3, "tavc_env"),  # the package's __init__: the public API, re-exporting the env
@@ -44,7 +50,8 @@ LAYERS: list[tuple[int, str]] = [
     (9, "tavc_agents"),  # the package's __init__ (a docstring)
     (10, "benchmarks"),
 ]
-ENGINE_ONLY = ("tavc_env.engine",)  # physics and task rules: must not know gymnasium or PettingZoo
+# physics, task rules and the twin's engine: must not know gymnasium or PettingZoo
+ENGINE_ONLY = ("tavc_env.engine", "tavc_env.twin.tables", "tavc_env.twin.engine")
 
 
 def module_name(path: Path) -> str:

@@ -131,7 +131,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
             measured_s=args.measured_h * 3600.0,
             progress=progress,
             preset=args.preset,
-            **overrides,
+            arena=overrides,
         )
     finally:
         bar.close()
@@ -183,6 +183,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         )
     from tavc_agents.experiments.runner import run_trial
     from tavc_agents.studies.common import arena_overrides
+    from tavc_env import EnvOptions
 
     frames: list[Any] = []
 
@@ -196,9 +197,8 @@ def cmd_record(args: argparse.Namespace) -> int:
         measured_s=args.minutes * 60.0,
         on_step=grab,
         preset=args.preset,
-        render_mode="rgb_array",
-        decision_interval_s=args.frame_s,
-        **arena_overrides(args.set),
+        arena=arena_overrides(args.set),
+        options=EnvOptions(render_mode="rgb_array", decision_interval_s=args.frame_s),
     )
     if kind == ".png":
         frames[-1].save(args.out)

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from tavc_env.env import TavcArenaEnv
+from tavc_env.env import ArenaEnv
 
 Step = tuple[
     dict[str, Any], dict[str, float], dict[str, bool], dict[str, bool], dict[str, dict[str, Any]]
@@ -33,10 +33,11 @@ Step = tuple[
 
 
 class DecidersOnly:
-    """Wraps a `TavcArenaEnv` (or the twin) so that only robots that must decide appear."""
+    """Wraps a `TavcArenaEnv` (or the twin: any `ArenaEnv`) so that only robots that must decide
+    appear."""
 
-    def __init__(self, env: TavcArenaEnv) -> None:
-        if not isinstance(env, TavcArenaEnv):
+    def __init__(self, env: ArenaEnv[Any]) -> None:
+        if not isinstance(env, ArenaEnv):
             raise ValueError(
                 f"env = {env!r} is invalid; allowed: a tavc_env arena env "
                 "(tavc_env.parallel_env(...) or tavc_env.twin_parallel_env(...))"
@@ -54,7 +55,7 @@ class DecidersOnly:
         return self.env.action_space(agent)
 
     @property
-    def unwrapped(self) -> TavcArenaEnv:
+    def unwrapped(self) -> ArenaEnv[Any]:
         return self.env
 
     def reset(

@@ -1,19 +1,27 @@
 """The arena engine: physics world + navigation + task cycle, advanced tick by tick.
 
-This is the one engine every adapter (the PettingZoo env, benchmarks, renderers) drives. It knows
-circuits, tasks and time; it knows nothing of observations, rewards or agents' names.
+The physics engine every adapter (the PettingZoo env, benchmarks, renderers) drives, behind the
+`Engine` protocol (`tavc_env.engine.base`) it shares with the model twin. It knows circuits, tasks
+and time; it knows nothing of observations, rewards or agents' names.
 """
 
 from __future__ import annotations
 
-import enum
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
 import numpy as np
 
 from tavc_env.config import ArenaConfig
+from tavc_env.engine.base import (
+    Advance,
+    ScheduleEntry,
+    add_repair,
+    breakdown_schedule,
+    run_due,
+    without_repairs,
+)
 from tavc_env.engine.navigation import (
     ESCAPE_DISTANCE_M,
     ESCAPE_TIME_S,
@@ -27,26 +35,8 @@ from tavc_env.engine.navigation import (
     steer_all_grid,
     stuck,
 )
-from tavc_env.engine.tasks import Completion, Phase, TaskCycle
+from tavc_env.engine.tasks import Phase, TaskCycle
 from tavc_env.engine.world import World
-
-
-class Scheduled(enum.IntEnum):
-    """What a schedule entry does (breakdowns sort before repairs at the same time)."""
-
-    BREAK_DOWN = 0
-    REPAIR = 1
-
-
-class ScheduleEntry(NamedTuple):
-    """A breakdown or repair due at `at_s`; a breakdown's `repair_after_s` schedules its repair
-    (negative: none). Entries sort by time, then kind, then robot."""
-
-    at_s: float
-    kind: Scheduled
-    robot: int
-    repair_after_s: float = -1.0
-
 
 JAM_WINDOW_S = 600.0  # default: ten typical tasks of the shipped arenas without any progress
 JAM_MOTION_M = 1.0  # ... while no moving robot got this far from where the window began
@@ -89,37 +79,16 @@ class ArenaSnapshot:
     values: np.ndarray  # (m,) the circuits' values now
 
 
-@dataclass
-class Advance:
-    """What happened during one call to `Simulation.advance`."""
-
-    completions: list[Completion] = field(default_factory=list)
-    repaired: list[int] = field(default_factory=list)
-    broken: list[int] = field(default_factory=list)
-    duration_s: float = 0.0
-
-
 def _read_only(array: np.ndarray) -> np.ndarray:
     view = array.view()
     view.setflags(write=False)
     return view
 
 
-def breakdown_schedule(config: ArenaConfig) -> list[ScheduleEntry]:
-    """The config's scheduled breakdowns as schedule entries, in time order (-1: no repair)."""
-    return sorted(
-        ScheduleEntry(
-            b.at_s,
-            Scheduled.BREAK_DOWN,
-            b.robot,
-            -1.0 if b.repair_after_s is None else b.repair_after_s,
-        )
-        for b in config.breakdowns
-    )
-
-
 class Simulation:
-    """One arena in motion. Call `reset(rng)` before use; `rng` drives every random draw."""
+    """One arena in motion. Call `reset(rng)` before use; `rng` drives every random draw.
+
+    The physics engine behind the `Engine` protocol (`tavc_env.engine.base`)."""
 
     def __init__(self, config: ArenaConfig, jam_window_s: float = JAM_WINDOW_S) -> None:
         """`jam_window_s`: the jam detector's window (see `jammed`); math.inf turns it off."""
@@ -241,8 +210,10 @@ class Simulation:
     def schedule_repair(self, robot: int) -> None:
         """Repair `robot` at the end of the next tick, so the repair is a decision epoch like any
         scheduled one."""
-        self._schedule.append(ScheduleEntry(self.time_s, Scheduled.REPAIR, robot))
-        self._schedule.sort()
+        add_repair(self._schedule, self.time_s, robot)
+
+    def is_broken(self, robot: int) -> bool:
+        return bool(self.tasks.phase[robot] == Phase.BROKEN)
 
     def repair(self, robot: int) -> None:
         if self.tasks.phase[robot] != Phase.BROKEN:
@@ -251,10 +222,7 @@ class Simulation:
         self.world.sync_positions()
         self._pos = self.world.pos
         self.tasks.repair(robot)
-        # Any other repair still scheduled for this robot belongs to a breakdown that is over.
-        self._schedule = [
-            e for e in self._schedule if not (e.kind == Scheduled.REPAIR and e.robot == robot)
-        ]
+        self._schedule = without_repairs(self._schedule, robot)
 
     # -- time ----------------------------------------------------------------------------------
     def advance(self, max_duration_s: float, stop_on_decision: bool = True) -> Advance:
@@ -420,18 +388,7 @@ class Simulation:
         self.escapes += 1
 
     def _run_schedule(self, now: float, out: Advance) -> None:
-        while self._schedule and self._schedule[0].at_s <= now + 1e-9:
-            _, kind, robot, after = self._schedule.pop(0)
-            if kind == Scheduled.BREAK_DOWN:
-                if self.tasks.phase[robot] != Phase.BROKEN:
-                    self.break_down(robot)
-                    out.broken.append(robot)
-                    if after > 0:
-                        self._schedule.append(ScheduleEntry(now + after, Scheduled.REPAIR, robot))
-                        self._schedule.sort()
-            elif self.tasks.phase[robot] == Phase.BROKEN:
-                self.repair(robot)
-                out.repaired.append(robot)
+        run_due(self._schedule, now, self, out)
 
     # -- liveness ------------------------------------------------------------------------------
     def _reset_jam_watch(self) -> None:

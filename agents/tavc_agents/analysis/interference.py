@@ -1,4 +1,4 @@
-"""Interference, from runs with fixed allocations (`tavc_agents.experiments.measurement.run_fixed`):
+"""Interference, from runs with fixed allocations (`tavc_env.measurement.run_fixed`):
 each run's mean task time per group of robots, the curve t(n) of task time against the robots on
 a circuit with its ratios t(n+1)/t(n), the cost of a circuit switch, the cross-interference
 matrices of fast and slow robots, and the figure of them.

@@ -16,12 +16,10 @@ only the f + s robots.
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
-import tavc_env
 from tavc_agents.experiments.measurement import FixedAllocation, two_circuit_allocation
-from tavc_env.config import ArenaConfig, Robot
+from tavc_env.config import ArenaConfig, Robot, preset_overrides
 
 FAST = Robot(0.30, "fast")
 SLOW = Robot(0.20, "slow")
@@ -75,15 +73,9 @@ def cross_arena(config: ArenaConfig, fast: int, slow: int) -> ArenaConfig:
 
 
 def arena_overrides(config: ArenaConfig, preset: str = BASE_PRESET) -> tuple[tuple[str, Any], ...]:
-    """The fields in which `config` differs from `preset`, sorted by name: `make_config(preset,
-    **dict(overrides))` rebuilds `config`."""
-    base = tavc_env.preset(preset)
-    changed = [
-        (f.name, getattr(config, f.name))
-        for f in dataclasses.fields(ArenaConfig)
-        if getattr(config, f.name) != getattr(base, f.name)
-    ]
-    return tuple(sorted(changed, key=lambda item: item[0]))
+    """The fields in which `config` differs from `preset` (`tavc_env.config.preset_overrides`,
+    from the study's base preset by default)."""
+    return preset_overrides(config, preset)
 
 
 def cross_allocation(

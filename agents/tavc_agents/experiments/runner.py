@@ -25,8 +25,10 @@ from tavc_agents.driver import PolicyDriver
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
 from tavc_agents.policy import Policy, Team
 from tavc_env._validation import is_integer, is_number, require
+from tavc_env.config import ARENA_KEYS
 from tavc_env.engine.tasks import Phase
 from tavc_env.env import completed_task_s
+from tavc_env.options import split_env_kwargs
 
 PolicyFactory = Callable[[str], Policy]
 EVENT_KINDS = ("break_down", "repair", "set_values")
@@ -211,6 +213,19 @@ def _factory_name(factory: Callable[..., Any]) -> str:
     return f"{module}.{name}" if module else str(name)
 
 
+def env_arguments(env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """A plain mapping of env arguments (a `preset` or `config`, arena overrides and env options,
+    mixed, as a sweep's `TrialSpec.env_kwargs` holds them) as `run_trial`'s keyword arguments
+    `preset`, `config`, `arena` and `options`; any other key is a ValueError naming it."""
+    rest = dict(env_kwargs)
+    out: dict[str, Any] = {k: rest.pop(k) for k in ("preset", "config") if k in rest}
+    arena, options = split_env_kwargs(rest)
+    out["arena"] = arena
+    if options:
+        out["options"] = tavc_env.EnvOptions(**options)
+    return out
+
+
 def run_trial(
     policies: Mapping[str, Policy] | PolicyFactory | Team,
     *,
@@ -223,17 +238,25 @@ def run_trial(
     events: Sequence[Event] = (),
     on_step: Callable[[Any], None] | None = None,
     env_factory: Callable[..., Any] | None = None,
-    **env_kwargs: Any,
+    preset: str | None = None,
+    config: tavc_env.ArenaConfig | None = None,
+    arena: Mapping[str, Any] | None = None,
+    options: tavc_env.EnvOptions | None = None,
 ) -> TrialResult:
     """Run one trial and return what it recorded.
 
     `policies` maps every agent name to its policy, or is a factory called with each agent name,
     or is a `Team` (a centralised allocator, which also observes every robot's info each step).
     `events` (breakdowns, repairs, priority changes) are applied at their times. `on_step`, if
-    given, is called with the env after every step (e.g. to render frames).
-    `env_kwargs` go to `tavc_env.parallel_env` (e.g. `preset="dahl2004"`, config overrides);
-    `max_sim_time_s` is set from the two periods. `progress`, if given, is called with the
-    simulated time after each step.
+    given, is called with the env after every step (e.g. to render frames). `progress`, if given,
+    is called with the simulated time after each step.
+
+    The arena is `preset` (None: `dahl2004`) or `config` (not both), with `arena`'s overrides
+    (fields of `tavc_env.ArenaConfig` and the shorthands `speeds`, `values`); the env's
+    `options` (`tavc_env.EnvOptions`) are the defaults unless given, except that the trial sets
+    `max_sim_time_s` from the two periods (and lifts `max_cycles`): `options` must leave those two
+    at their defaults. `env_arguments` turns a plain mapping of all of these (as a sweep's
+    `TrialSpec.env_kwargs` holds them) into these arguments.
 
     `env_factory` (None: `tavc_env.parallel_env`) builds the env instead, from the same keyword
     arguments: e.g. `functools.partial(tavc_env.twin_parallel_env, tables=tables)` runs the trial
@@ -254,10 +277,30 @@ def run_trial(
         snapshot_every_s,
         "a finite period > 0 s",
     )
-    reserved = sorted({"max_sim_time_s", "max_cycles"} & set(env_kwargs))
+    require(
+        options is None or isinstance(options, tavc_env.EnvOptions),
+        "options",
+        options,
+        "a tavc_env.EnvOptions or None",
+    )
+    require(
+        arena is None or isinstance(arena, Mapping),
+        "arena",
+        arena,
+        "None or a mapping of arena overrides (fields of tavc_env.ArenaConfig, speeds, values)",
+    )
+    not_arena = sorted(str(k) for k in arena or {} if k not in ARENA_KEYS)
+    require(
+        not not_arena,
+        "arena",
+        not_arena,
+        f"overrides of the arena: {sorted(ARENA_KEYS)} (env options go in options=EnvOptions(...))",
+    )
+    chosen = options if options is not None else tavc_env.EnvOptions()
+    reserved = sorted({"max_sim_time_s", "max_cycles"} & set(chosen.changed()))
     require(
         not reserved,
-        "env_kwargs",
+        "options",
         reserved,
         "no max_sim_time_s / max_cycles: the trial's length is convergence_s + measured_s",
     )
@@ -269,7 +312,15 @@ def run_trial(
     )
     make_env = tavc_env.parallel_env if env_factory is None else env_factory
     total = float(convergence_s + measured_s)
-    env = make_env(max_sim_time_s=total, max_cycles=10**9, **env_kwargs)
+    overrides = dict(arena or {})
+    arena_kwargs: dict[str, Any] = {} if preset is None else {"preset": preset}
+    if config is not None:
+        arena_kwargs["config"] = config
+    env = make_env(
+        options=chosen.replace(max_sim_time_s=total, max_cycles=10**9),
+        **arena_kwargs,
+        **overrides,
+    )
     agents = list(env.possible_agents)
     events = check_events(events, env.config, total)
     team = policies if isinstance(policies, Team) else None
@@ -294,7 +345,8 @@ def run_trial(
         table[agent].reset(np.random.default_rng(seq), n_actions)
 
     cfg = env.config
-    recorded = _jsonable(env_kwargs)
+    # what the caller chose, as a sweep's TrialSpec.env_kwargs would hold it
+    recorded = _jsonable({**arena_kwargs, **overrides, **chosen.changed()})
     if make_env is not tavc_env.parallel_env:
         recorded["env_factory"] = _factory_name(make_env)
     result = TrialResult(

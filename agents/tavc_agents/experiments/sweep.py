@@ -25,7 +25,6 @@ import contextlib
 import ctypes
 import dataclasses
 import hashlib
-import inspect
 import json
 import multiprocessing
 import os
@@ -44,7 +43,7 @@ from tqdm import tqdm
 
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
 from tavc_agents.experiments.registry import REGISTRY, Allocator, make_allocator
-from tavc_agents.experiments.runner import Event, TrialResult, run_trial
+from tavc_agents.experiments.runner import Event, TrialResult, env_arguments, run_trial
 from tavc_env import ArenaConfig
 
 _KEY = re.compile(r"^[A-Za-z0-9_.=-]+$")
@@ -102,7 +101,7 @@ def run_spec(spec: TrialSpec) -> TrialResult:
         snapshot_every_s=spec.snapshot_every_s,
         label=spec.key,
         events=spec.events,
-        **dict(spec.env_kwargs),
+        **env_arguments(spec.env_kwargs),
     )
 
 
@@ -125,29 +124,51 @@ def spec_record(spec: TrialSpec) -> dict[str, Any]:
 
 def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
     """A short digest of the arena configuration that `env_kwargs` resolve to (the env's own
-    arguments, such as time limits, are not part of the arena)."""
+    options, such as time limits, are not part of the arena)."""
     from tavc_env import make_config
-    from tavc_env.env import TavcArenaEnv
+    from tavc_env.options import split_env_kwargs
 
-    env_only = set(inspect.signature(TavcArenaEnv.__init__).parameters) - {"preset", "config"}
-    arena = {k: v for k, v in env_kwargs.items() if k not in env_only}
-    config = make_config(arena.pop("preset", "dahl2004"), **arena)
+    arena = dict(env_kwargs)
+    preset, given = arena.pop("preset", None), arena.pop("config", None)
+    config = make_config(preset, given, **split_env_kwargs(arena)[0])
     return hashlib.sha256(digest_text(config).encode()).hexdigest()[:16]
 
 
-# Fields added to ArenaConfig after trial records began to carry digests. Each is neutral at its
-# default (the arena behaves as before it existed), so it enters the digest only when it is set:
-# trials stored before it came keep their digest and are resumed.
-FIELDS_SINCE_DIGESTS = ("clearance_governor_m", "station_bays", "overtaking")
+# The fields ArenaConfig had when trial records began to carry digests (November 2026). Frozen:
+# every field added since is neutral at its default (the arena behaves as before it existed), so
+# it enters the digest only when it is set, and trials stored before it came keep their digest.
+# A new field therefore needs no entry here.
+FIELDS_OF_FIRST_DIGESTS = frozenset(
+    {
+        "width",
+        "height",
+        "circuits",
+        "robots",
+        "robot_radius",
+        "source_service_s",
+        "sink_service_s",
+        "service_scales_with_speed",
+        "service_reference_speed",
+        "queue_offset_m",
+        "queue_spacing_m",
+        "join_radius_m",
+        "dock_tolerance_m",
+        "speed_noise",
+        "max_turn_rate",
+        "sensing_range_m",
+        "dt",
+        "breakdowns",
+    }
+)
 
 
 def digest_text(config: ArenaConfig) -> str:
-    """What `arena_digest` hashes: the config's repr, less the fields of `FIELDS_SINCE_DIGESTS`
-    that are at their defaults."""
+    """What `arena_digest` hashes: the config's repr, less the fields added after
+    `FIELDS_OF_FIRST_DIGESTS` that are at their defaults."""
     parts = [
         f"{f.name}={getattr(config, f.name)!r}"
         for f in dataclasses.fields(config)
-        if f.repr and (f.name not in FIELDS_SINCE_DIGESTS or getattr(config, f.name) != f.default)
+        if f.repr and (f.name in FIELDS_OF_FIRST_DIGESTS or getattr(config, f.name) != f.default)
     ]
     return f"{type(config).__qualname__}({', '.join(parts)})"
 
@@ -497,6 +518,7 @@ def _same_trial(stored: dict[str, Any] | None, wanted: dict[str, Any]) -> bool:
 
 def _check_spec(spec: TrialSpec) -> None:
     make_allocator(spec.allocator, **spec.allocator_kwargs)  # names a bad allocator or parameter
+    env_arguments(spec.env_kwargs)  # names a key that is neither an arena field nor an option
 
 
 TRIALS: JobKind[TrialSpec, TrialResult] = JobKind(

@@ -122,7 +122,7 @@ def _random_run(job: Run) -> dict[str, Any]:
         convergence_s=600.0,
         measured_s=job.hours * 3600.0,
         preset="dahl2004",
-        dt=job.dt,
+        arena={"dt": job.dt},
     )
     t0, t1 = result.measured_window
     classes = np.array(result.speed_classes)[result.delivery_robot]

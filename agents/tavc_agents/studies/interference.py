@@ -1,6 +1,6 @@
 """Interference in the arena: task time against crowding t(n), the cost of a circuit switch, the
 cross-interference between fast and slow robots and the elasticity e drawn from it, from runs of
-the bare engine with fixed allocations (`tavc_agents.experiments.measurement.run_fixed`; the analysis is
+the bare engine with fixed allocations (`tavc_env.measurement.run_fixed`; the analysis is
 `tavc_agents.analysis.interference` and `tavc_agents.analysis.elasticity`). The script is
 `benchmarks/interference.py`.
 """

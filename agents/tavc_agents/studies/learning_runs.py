@@ -23,7 +23,7 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_c
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.files import atomic_path
 from tavc_agents.experiments.provenance import run_metadata
-from tavc_agents.experiments.runner import run_trial
+from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.learners.network import Mlp, NetworkTeam
 from tavc_env import make_config
 from tavc_env._validation import is_number, require
@@ -114,7 +114,11 @@ def evaluate_network(
     require(is_number(hours) and hours > 0, "hours", hours, "a duration > 0 h")
     arena = {k: v for k, v in env_kwargs.items() if k not in ("observation_mode", "max_sim_time_s")}
     result = run_trial(
-        NetworkTeam(mlp), seed=seed, convergence_s=0.0, measured_s=hours * 3600.0, **arena
+        NetworkTeam(mlp),
+        seed=seed,
+        convergence_s=0.0,
+        measured_s=hours * 3600.0,
+        **env_arguments(arena),
     )
     m = measure(result)
     switches = allocation.switches_per_robot_h(result, *result.measured_window)

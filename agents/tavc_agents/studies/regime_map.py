@@ -10,7 +10,7 @@ random allocation. Beside each cell, the model twin's prediction (`tavc_env.twin
 measured in the same arena): a what-if tool, never a substitute for the physics columns.
 
 Each arena's e is measured first (`tavc_agents.studies.elasticity.measure_elasticity`, the interference
-study's runs and settings), then its twin tables (`tavc_agents.experiments.twin_tables.build_tables`).
+study's runs and settings), then its twin tables (`tavc_env.twin.build_tables`).
 The cells that decide the question (softmax T = 0.005 and 0.01 on `dahl2004_congestion` and on
 `dahl2004`) get `decisive_trials` physics trials; the congestion arena's run first, then the
 twin's trials, then `dahl2004`'s decisive cells and the rest. Every other cell gets `trials`.
@@ -43,13 +43,12 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.provenance import run_metadata, run_recorded
 from tavc_agents.experiments.registry import make_allocator
-from tavc_agents.experiments.runner import run_trial
+from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.experiments.sweep import arena_digest, json_jobs, run_jobs, saved_results
-from tavc_agents.experiments.twin_tables import build_tables
 from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
 from tavc_agents.studies.elasticity import measure_elasticity
 from tavc_env import metrics
-from tavc_env.twin import InterferenceTables
+from tavc_env.twin import InterferenceTables, build_tables
 
 ARENAS: Mapping[str, Mapping[str, Any]] = {
     "dahl2004": {"preset": "dahl2004"},
@@ -274,7 +273,7 @@ def run_map_trial(job: MapTrial) -> dict[str, Any]:
         measured_s=job.measured_h * 3600.0,
         snapshot_every_s=(job.convergence_h + job.measured_h) * 3600.0,
         env_factory=factory,
-        **ARENAS[job.arena],
+        **env_arguments(ARENAS[job.arena]),
     )
     m = measure(result)
     return {

@@ -6,7 +6,7 @@ switches.
 For each arena of the regime map, the twin's tables are measured as the regime map measures them
 (`tavc_agents.studies.regime_map`: the same runs, so the same tables), then the physics runs random
 allocation for `--hours` per seed (no breakdowns, the first `--warmup-s` not counted) and every
-task is set against its cell of the tables (`tavc_agents.experiments.twin_tables.random_allocation_run`):
+task is set against its cell of the tables (`tavc_env.twin.random_allocation_run`):
 
 * own-circuit tasks: observed time over the cell's mean (1: the tables are right under random
   allocation's changing crowds);
@@ -34,10 +34,9 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.provenance import run_recorded
 from tavc_agents.experiments.sweep import json_jobs, run_jobs
-from tavc_agents.experiments.twin_tables import random_allocation_run
 from tavc_agents.studies import regime_map
 from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
-from tavc_env.twin import InterferenceTables
+from tavc_env.twin import InterferenceTables, random_allocation_run
 
 Row = dict[str, Any]
 Variant = Literal["physics", "twin_tables", "twin_audited_switch"]

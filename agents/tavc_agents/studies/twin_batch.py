@@ -31,7 +31,7 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.provenance import run_recorded
 from tavc_agents.experiments.registry import make_allocator
-from tavc_agents.experiments.runner import run_trial
+from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.experiments.sweep import json_jobs, saved_results
 from tavc_agents.experiments.twin_batch import Learner, run_batch
 from tavc_agents.studies import regime_map
@@ -251,7 +251,7 @@ def time_speed(s: Settings, tables: Mapping[str, Any]) -> Row:
                 convergence_s=convergence_h * 3600.0,
                 measured_s=measured_h * 3600.0,
                 env_factory=factory,
-                **regime_map.ARENAS[arena],
+                **env_arguments(regime_map.ARENAS[arena]),
             )
         return (time.perf_counter() - started) / count
 

@@ -100,7 +100,7 @@ def test_a_repair_after_a_breakdown_and_after_a_scheduled_breakdown_runs() -> No
         Event(30.0, "break_down", robot=1),
         Event(60.0, "repair", robot=1),
     ]
-    stepped = run(events, breakdowns=(Breakdown(robot=3, at_s=10.0),))
+    stepped = run(events, arena={"breakdowns": (Breakdown(robot=3, at_s=10.0),)})
     assert stepped[-1] == pytest.approx(120.0)
 
 

@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+import tavc_env
 from tavc_agents.allocators.baselines import RandomAllocator
-from tavc_agents.experiments.runner import TrialResult, run_trial
-from tavc_agents.experiments.sweep import TrialSpec, result_path, run_sweep
+from tavc_agents.experiments.runner import TrialResult, env_arguments, run_trial
+from tavc_agents.experiments.sweep import TrialSpec, result_path, run_spec, run_sweep
 from tavc_agents.learners.tavc import TavcLearner, softmax_tavc
 
 AGENTS = [f"robot_{i}" for i in range(6)]
@@ -322,6 +323,80 @@ def test_missing_policies_raise_naming_the_agents() -> None:
 def test_bad_periods_raise(field: str, kwargs: dict[str, Any]) -> None:
     with pytest.raises(ValueError, match=field):
         run_trial(lambda agent: RandomAllocator(), seed=0, preset="dahl2004", **kwargs)
+
+
+# -- the trial's arena and options: explicit arguments ----------------------------------------
+
+
+def test_a_misspelt_argument_is_an_unknown_run_trial_argument() -> None:
+    """`convergence_h` used to be reported as an unknown arena key."""
+    with pytest.raises(TypeError, match=r"run_trial\(\) got an unexpected keyword .*convergence_h"):
+        run_trial(lambda agent: RandomAllocator(), seed=0, convergence_h=1.0)  # type: ignore[call-arg]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "pattern"),
+    [
+        ({"arena": {"decision_interval_s": 5.0}}, r"^arena = \['decision_interval_s'\] is invalid"),
+        ({"arena": {"sourse_service_s": 5.0}}, r"^arena = \['sourse_service_s'\] is invalid"),
+        ({"options": tavc_env.EnvOptions(max_cycles=5)}, r"^options = \['max_cycles'\] is invalid"),
+        ({"options": {"step_cap_s": 60.0}}, r"^options = .* allowed: a tavc_env\.EnvOptions"),
+        (
+            {"preset": "dahl2004", "config": tavc_env.preset("dahl2004")},
+            r"^preset = 'dahl2004' is invalid; allowed: None when a config is given",
+        ),
+    ],
+)
+def test_the_arena_and_options_are_checked_before_the_trial(
+    kwargs: dict[str, Any], pattern: str
+) -> None:
+    with pytest.raises(ValueError, match=pattern):
+        run_trial(lambda agent: RandomAllocator(), seed=0, progress=_guard, **HOUR, **kwargs)
+
+
+def test_arena_and_options_reach_the_env_and_the_record() -> None:
+    seen: list[Any] = []
+    options = tavc_env.EnvOptions(decision_interval_s=30.0, reward_time_unit="s")
+    result = run_trial(
+        lambda agent: RandomAllocator(),
+        seed=0,
+        convergence_s=0.0,
+        measured_s=120.0,
+        preset="dahl2004_homogeneous",
+        arena={"source_service_s": 5.0},
+        options=options,
+        on_step=seen.append,
+    )
+    env = seen[0]
+    assert env.config == tavc_env.make_config("dahl2004_homogeneous", source_service_s=5.0)
+    assert env.options == options.replace(max_sim_time_s=120.0, max_cycles=10**9)
+    assert result.steps == 4  # fixed 30 s steps
+    assert result.env_kwargs == {
+        "preset": "dahl2004_homogeneous",
+        "source_service_s": 5.0,
+        "decision_interval_s": 30.0,
+        "reward_time_unit": "s",
+    }
+    # the same trial from its plain record, as a sweep runs it
+    assert env_arguments(result.env_kwargs) == {
+        "preset": "dahl2004_homogeneous",
+        "arena": {"source_service_s": 5.0},
+        "options": options,
+    }
+    spec = TrialSpec(
+        key="k",
+        allocator="random",
+        seed=0,
+        env_kwargs=result.env_kwargs,
+        convergence_s=0.0,
+        measured_s=120.0,
+    )
+    again = run_spec(spec)
+    assert again.env_kwargs == result.env_kwargs and again.steps == result.steps
+    with pytest.raises(ValueError, match=r"unknown configuration key\(s\) \['presett'\]"):
+        env_arguments({"presett": "dahl2004"})
+    config = tavc_env.preset("dahl2004")
+    assert env_arguments({"config": config}) == {"config": config, "arena": {}}
 
 
 class _Runaway(Exception):

@@ -16,9 +16,8 @@ from tavc_agents.analysis.measures import measure
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import run_trial
 from tavc_agents.experiments.twin_batch import Learner, run_batch
-from tavc_agents.experiments.twin_tables import random_allocation_run
 from tavc_env.config import Breakdown
-from tavc_env.twin import InterferenceTables
+from tavc_env.twin import InterferenceTables, random_allocation_run
 
 DAHL = tavc_env.preset("dahl2004")
 

@@ -1,5 +1,5 @@
 """Trials on the model twin (`run_trial(env_factory=...)`) and the twin's tables measured in the
-physics (`tavc_agents.experiments.twin_tables`): the default path is untouched, TAVC learners run 20
+physics (`tavc_env.twin.measure`): the default path is untouched, TAVC learners run 20
 simulated hours on the twin in well under a second, and a tiny build from physics works."""
 
 from __future__ import annotations
@@ -14,8 +14,13 @@ import pytest
 import tavc_env
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import Event, TrialResult, run_trial
-from tavc_agents.experiments.twin_tables import allocation_for, build_tables, random_allocation_run
-from tavc_env.twin import InterferenceTables, TwinArenaEnv
+from tavc_env.twin import (
+    InterferenceTables,
+    TwinArenaEnv,
+    allocation_for,
+    build_tables,
+    random_allocation_run,
+)
 
 DAHL = tavc_env.preset("dahl2004")
 SHORT = {"convergence_s": 300.0, "measured_s": 300.0}  # ten simulated minutes of physics

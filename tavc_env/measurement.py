@@ -1,0 +1,193 @@
+"""Measuring the physics engine: runs with fixed allocations, and an observer that counts the ticks
+each robot spends in each mode of its task.
+
+Observers attach with `Simulation.add_observer` and only read the simulation's public views, so a
+measured run follows exactly the trajectory of an unmeasured one. What the runs measure feeds the
+interference studies and the model twin's tables (`tavc_env.twin.measure`).
+
+    run = run_fixed(FixedAllocation(preset="dahl2004_homogeneous", circuit_of=(0, 0, 0, 1, 1, 1),
+                                    seed=0, hours=1.0, warmup_s=600.0, skip_first=2))
+    run.tasks      # every counted task: robot, class, circuit, task time, when decided, own/switch
+    run.mode_ticks # ticks per robot and Mode within the measured window
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from tavc_env.config import ArenaConfig, make_config
+from tavc_env.engine.simulation import EngineEvent, Simulation
+from tavc_env.engine.tasks import Mode
+
+_EPS = 1e-9
+
+
+class ModeTicks:
+    """Per robot, the physics ticks spent in each `Mode` (idle, travel, queued, docking, service)
+    among the ticks that began at a time in [start_s, end_s).
+
+    A tick counts in the mode the robot moved in during it: its mode at the end of the previous
+    tick, or travel if it started a task (`Simulation.choose`) between the two ticks. Create the
+    counter when the robots' modes are those they move in next (after the decisions of that
+    moment) and attach it with `sim.add_observer`."""
+
+    def __init__(self, sim: Simulation, start_s: float, end_s: float) -> None:
+        self.start_s = start_s
+        self.end_s = end_s
+        self.counts = np.zeros((sim.config.n_robots, len(Mode)))
+        self._rows = np.arange(sim.config.n_robots)
+        self._modes = sim.modes.copy()
+        self._time_s = sim.time_s
+        self._first = True
+
+    def on_tick(self, sim: Simulation, events: list[EngineEvent]) -> None:
+        began = self._time_s
+        if self.start_s <= began < self.end_s:
+            modes = self._modes
+            if not self._first:
+                started = sim.tasks.decision_time == began  # chose a task as this tick began
+                modes = np.where(started, int(Mode.TRAVEL), modes)
+            self.counts[self._rows, modes] += 1
+        self._first = False
+        self._modes = sim.modes.copy()
+        self._time_s = sim.time_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class FixedAllocation:
+    """A run of the bare engine in which each robot serves the circuit it is given, task after
+    task; the `switcher` (if >= 0) alternates circuits every `switch_every` tasks.
+
+    A task counts if it was decided at or after `warmup_s` and is not among the robot's first
+    `skip_first`; tasks decided up to the end (`hours`) count and are run to completion."""
+
+    preset: str
+    circuit_of: tuple[int, ...]
+    """each robot's circuit (the switcher's first one)"""
+    seed: int
+    hours: float
+    warmup_s: float
+    skip_first: int
+    switcher: int = -1
+    switch_every: int = 3
+    speeds: tuple[float, ...] | None = None
+    """the robots' top speeds, if not the preset's"""
+    arena: tuple[tuple[str, Any], ...] = ()
+    """arena overrides (KEY, VALUE)"""
+
+    def config(self) -> ArenaConfig:
+        overrides: dict[str, Any] = dict(self.arena)
+        if self.speeds is not None:
+            overrides["speeds"] = list(self.speeds)
+        config = make_config(self.preset, **overrides)
+        if len(self.circuit_of) != config.n_robots:
+            raise ValueError(
+                f"circuit_of = {self.circuit_of!r} is invalid; allowed: one circuit for each of "
+                f"the {config.n_robots} robots"
+            )
+        return config
+
+
+class CountedTask(NamedTuple):
+    """A task of the measured window: `kind` is "switch" if it started at the other circuit's
+    sink (the switcher changed circuits), "own" otherwise."""
+
+    robot: int
+    robot_class: str
+    circuit: int
+    task_time_s: float
+    decided_s: float
+    kind: str
+
+
+@dataclass
+class FixedRun:
+    """What a `FixedAllocation` run measured."""
+
+    allocation: FixedAllocation
+    classes: list[str]
+    """each robot's speed class"""
+    tasks: list[CountedTask]
+    mode_ticks: np.ndarray
+    """(robots, len(Mode)): ticks per mode within the measured window"""
+    wall_s: float
+
+
+def two_circuit_allocation(on_first: int, robots: int = 6) -> tuple[int, ...]:
+    """`on_first` robots (the lowest indices) on circuit 0, the rest on circuit 1."""
+    return tuple([0] * on_first + [1] * (robots - on_first))
+
+
+class _Plan:
+    """Who serves what next, and the task each robot has in progress: (decided at, kind,
+    ordinal), or None for a task decided after the end of the run."""
+
+    def __init__(self, sim: Simulation, alloc: FixedAllocation) -> None:
+        n = len(alloc.circuit_of)
+        self.sim = sim
+        self.alloc = alloc
+        self.end_s = alloc.hours * 3600.0
+        self.current = list(alloc.circuit_of)
+        self.block = [0] * n  # tasks chosen in the switcher's current block
+        self.ordinal = [0] * n  # tasks chosen so far per robot
+        self.pending: list[tuple[float, str, int] | None] = [None] * n
+
+    def decide(self, i: int) -> None:
+        alloc, sim = self.alloc, self.sim
+        if i == alloc.switcher:
+            if self.block[i] == alloc.switch_every:
+                self.current[i] = 1 - self.current[i]
+                self.block[i] = 0
+            self.block[i] += 1
+        c = self.current[i]
+        kind = "switch" if c != int(sim.circuits[i]) else "own"
+        now = sim.time_s
+        self.pending[i] = (now, kind, self.ordinal[i]) if now <= self.end_s + _EPS else None
+        self.ordinal[i] += 1
+        sim.choose(i, c)
+
+    def counts(self, i: int) -> tuple[float, str] | None:
+        """The task robot i just completed, (decided at, kind), if it counts."""
+        p = self.pending[i]
+        alloc = self.alloc
+        if p is not None and p[0] >= alloc.warmup_s - _EPS and p[2] >= alloc.skip_first:
+            return p[0], p[1]
+        return None
+
+    def busy(self) -> bool:
+        return any(p is not None for p in self.pending)
+
+
+def run_fixed(alloc: FixedAllocation) -> FixedRun:
+    """Run `alloc` (see `FixedAllocation`): every counted task, and the ticks each robot spent in
+    each mode within the window [warmup, end)."""
+    config = alloc.config()
+    classes = [r.speed_class for r in config.robots]
+    sim = Simulation(config)
+    sim.reset(np.random.default_rng(alloc.seed))
+    plan = _Plan(sim, alloc)
+    wall0 = time.perf_counter()
+    for i in range(config.n_robots):
+        plan.decide(i)
+    mode_ticks = ModeTicks(sim, alloc.warmup_s, plan.end_s)
+    sim.add_observer(mode_ticks)
+    tasks: list[CountedTask] = []
+    while sim.time_s < plan.end_s or plan.busy():
+        out = sim.advance(600.0)
+        for comp in out.completions:
+            i = comp.robot
+            counted = plan.counts(i)
+            if counted is not None:
+                decided, kind = counted
+                tasks.append(
+                    CountedTask(i, classes[i], comp.circuit, comp.task_time_s, decided, kind)
+                )
+            plan.pending[i] = None
+            plan.decide(i)
+        if sim.time_s > plan.end_s + 3600.0:
+            raise RuntimeError(f"{alloc}: tasks still pending an hour after the end of the run")
+    return FixedRun(alloc, classes, tasks, mode_ticks.counts, time.perf_counter() - wall0)
