@@ -96,3 +96,17 @@ def test_the_passing_rule_ranks_by_targets_met_then_by_e() -> None:
     # on e and the knee alone "all_three" is beaten by "wide_interval"; with rho it is not
     assert "all_three" not in [r["candidate"] for r in design.frontier(rows)]
     assert "all_three" in [r["candidate"] for r in design.frontier(rows, with_rho=True)]
+
+
+def test_the_passing_preset_is_the_committed_search_s_choice() -> None:
+    import json
+
+    import tavc_env
+    from tavc_agents.studies.common import RESULTS_DIR
+
+    folder = RESULTS_DIR / "congestion_design_passing"
+    report = json.loads((folder / "congestion_design.json").read_text())
+    chosen = report["summary"]["chosen"]["candidate"]
+    assert chosen == report["summary"]["order"][0]
+    (candidate,) = [c for c in design.PASSING_CANDIDATES if c.name == chosen]
+    assert tavc_env.preset("dahl2004_passing") == candidate.config()

@@ -111,6 +111,7 @@ def test_two_bays_and_overtaking_let_a_fast_robot_keep_its_pace() -> None:
 
 
 def test_overtaking_is_off_by_default_and_a_boolean() -> None:
-    assert not any(tavc_env.preset(name).overtaking for name in tavc_env.PRESETS)
+    with_it = [name for name in tavc_env.PRESETS if tavc_env.preset(name).overtaking]
+    assert with_it == ["dahl2004_passing"]
     with pytest.raises(ValueError, match=r"^overtaking = 1 is invalid; allowed: True or False"):
         tavc_env.make_config("dahl2004", overtaking=1)
