@@ -247,14 +247,16 @@ def differentiation_figure(
     for curve in curves:
         ax.fill_between(curve.e, curve.low, curve.high, color=colour[curve.condition], alpha=0.18)
         ax.plot(curve.e, curve.mean, "-", color=colour[curve.condition], lw=1.8)
-    for points, marker, size, face in (
-        (physics, "o", 5, None),
-        (predicted, "D", 7, "white"),
-        (result, "*", 13, None),
+    # within an arena the conditions stand side by side; the passing arena's prediction just
+    # left of its result, so that the two do not hide each other
+    for points, shift, marker, size, face in (
+        (physics, 0.0, "o", 5, None),
+        (predicted, -0.011, "D", 6, "white"),
+        (result, 0.011, "*", 12, None),
     ):
         for p in points:
             ax.errorbar(
-                p.e + offset[p.condition],
+                p.e + 2 * offset[p.condition] * bool(shift) + offset[p.condition] + shift,
                 p.mean,
                 yerr=_error([p.mean], [p.low], [p.high]),
                 fmt=marker,
@@ -267,32 +269,52 @@ def differentiation_figure(
             )
     ax.axhline(0.0, color="black", lw=0.9)
     ax.axvline(1.0, color="grey", lw=0.9, ls=":")
-    top = ax.get_ylim()[1]
+    # room above the data for the arena labels (three staggered rows), anchored to the top
+    low, high = ax.get_ylim()
+    ax.set_ylim(low, high + 0.22 * (high - low))
     arenas = sorted({(p.e, p.arena) for p in (*physics, *predicted)})
+    level = 0
     for k, (e, arena) in enumerate(arenas):
-        close = k > 0 and e - arenas[k - 1][0] < 0.12
+        # labels of arenas closer than a label's width go one row lower, in turn
+        level = (level + 1) % 3 if k > 0 and e - arenas[k - 1][0] < 0.35 else 0
         ax.annotate(
             f"{arena}\ne = {e:.2f}",
-            (e, top),
-            xytext=(0, -4 - 22 * close),
+            (e, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(0, -3 - 21 * level),
             textcoords="offset points",
             ha="center",
             va="top",
             fontsize=7,
             color="0.3",
         )
-    ax.set_ylim(top=top + 0.08 * (top - ax.get_ylim()[0]))
-    ax.text(
-        0.995,
-        0.5,
-        "paper's direction \u2191   \u2193 reversed",
-        transform=ax.transAxes,
+    ax.annotate(
+        "e = 1: crowding costs every robot the same fraction",
+        (1.0, 0.0),
+        xycoords=("data", "axes fraction"),
+        xytext=(-3, 4),
+        textcoords="offset points",
         rotation=90,
         ha="right",
-        va="center",
-        fontsize=8,
+        va="bottom",
+        fontsize=7,
         color="0.35",
     )
+    for sign, text in (
+        (1, "\u2191 paper's direction: fast robots on the high-value circuit"),
+        (-1, "\u2193 reversed: slow robots on the high-value circuit"),
+    ):
+        ax.annotate(
+            text,
+            (0.995, 0.0),
+            xycoords=ax.get_yaxis_transform(),  # x in axes fraction, y in data
+            xytext=(0, 4 * sign),
+            textcoords="offset points",
+            ha="right",
+            va="bottom" if sign > 0 else "top",
+            fontsize=8,
+            color="0.35",
+        )
     handles = [plt.Line2D([], [], color=colour[c], lw=6, alpha=0.5, label=c) for c in conditions]
     handles += [
         plt.Line2D(
@@ -340,7 +362,10 @@ def differentiation_figure(
         )
     else:
         pending.append("its physics result")
-    ax.legend(handles=handles, fontsize=7.5, loc="lower left", framealpha=0.9)
+    # the empty lower middle: clear of the physics cells near e = 1 and of the lowest arenas
+    ax.legend(
+        handles=handles, fontsize=7.5, loc="lower left", bbox_to_anchor=(0.47, 0.06), framealpha=0.9
+    )
     if pending:
         ax.text(
             0.99,
