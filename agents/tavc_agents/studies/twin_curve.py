@@ -382,6 +382,22 @@ def passing_status(s: Settings) -> str:
     )
 
 
+def scale_note(rows: Sequence[Row]) -> list[str]:
+    """Why the softmax curves fall at the lowest e (where there is an H), as paragraph lines."""
+    longest = max(rows, key=lambda r: r["handling_s"])
+    if longest["handling_s"] <= 0:
+        return []
+    return [
+        f"Reading the lowest e: H lengthens every task (at e = {longest['e']:g} a fast robot "
+        f"alone takes {longest['handling_s'] + Family().b_fast_s:.0f} s, against "
+        f"{Family().b_fast_s:g} s at e = 1), so every reward w / t is smaller and a fixed "
+        "softmax temperature is relatively hotter: the softmax robots explore more and the "
+        "higher temperatures differentiate less there. Epsilon-greedy does not depend on the "
+        "reward scale.",
+        "",
+    ]
+
+
 def report_body(rows: Sequence[Row], evens: Sequence[Row], s: Settings) -> str:
     grid = s.grid
     table = []
@@ -430,6 +446,7 @@ def report_body(rows: Sequence[Row], evens: Sequence[Row], s: Settings) -> str:
             "",
             passing_status(s),
             "",
+            *scale_note(rows),
             "## Method",
             "",
             f"Synthetic tables (`tavc_agents.analysis.synthetic_tables`): {Family().describe()}; "
