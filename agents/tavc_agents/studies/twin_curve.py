@@ -514,6 +514,7 @@ def run(settings: Settings) -> Outcome:
         wall_of=lambda result: float(result["wall_s"]),
     )
     rows = [point_row(job, results[point_key(job)]) for job in jobs]
+    # the bootstrap's own stream: batches draw from [seed, i, j] with i < len(grid)
     rng = np.random.default_rng([s.seed, len(s.grid), len(CONDITIONS)])
     evens = [
         {
