@@ -29,6 +29,7 @@ STUDIES: dict[str, str] = {
         "passing",
         "twin_audit",
         "twin_batch",
+        "twin_curve",
         "cli_startup",
     )
 }

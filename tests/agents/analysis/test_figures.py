@@ -83,3 +83,28 @@ def test_interference_figure_names_its_arena_and_starts_task_times_at_zero(
     assert curve.get_ylim()[0] == 0.0 and "arena Y" in curve.get_title()
     assert "arena X" in fast.get_title() and "arena X" in slow.get_title()
     assert ratio.get_ylim()[0] <= 1.0 <= ratio.get_ylim()[1]  # the labelled no-slow-down line
+
+
+def test_differentiation_figure_draws_every_source_and_says_what_is_pending(
+    saved: list[Any], tmp_path: Path
+) -> None:
+    from tavc_agents.analysis.plots import Curve, PhysicsPoint, differentiation_figure
+
+    curve = Curve("softmax_T0.005", [0.8, 1.0, 1.5], [0.1, 0.05, -0.1], [0.0, 0.0, -0.2], [0.2] * 3)
+    cell = PhysicsPoint("softmax_T0.005", "dahl2004", 1.85, 1.84, 1.86, -0.04, -0.07, -0.01, 400)
+    passing = PhysicsPoint("softmax_T0.005", "dahl2004_passing", 0.9, 0.8, 1.0, 0.05, 0.0, 0.1, 430)
+    differentiation_figure([curve], [cell], [], [], tmp_path / "a.png", 2000)
+    ax = saved[-1].axes[0]
+    check_axes(ax)
+    texts = [t.get_text() for t in ax.texts]
+    assert any("pending" in t for t in texts) and any("dahl2004\ne = 1.85" in t for t in texts)
+    assert ax.get_title() and ax.get_xlabel().startswith("crowding elasticity e")
+    hlines = [ln for ln in ax.get_lines() if list(ln.get_ydata()) == [0.0, 0.0]]
+    vlines = [ln for ln in ax.get_lines() if list(ln.get_xdata()) == [1.0, 1.0]]
+    assert hlines and vlines  # the zero line and e = 1
+    differentiation_figure([curve], [cell], [passing], [passing], tmp_path / "b.png", 2000)
+    ax = saved[-1].axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "dahl2004_passing: twin prediction" in labels
+    assert "dahl2004_passing: physics result" in labels
+    assert not any("pending" in t.get_text() for t in ax.texts)
