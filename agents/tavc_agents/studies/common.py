@@ -25,6 +25,7 @@ import tyro
 from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TRIALS, TrialSpec
+from tavc_env._validation import is_integer, is_number
 
 RESULTS_DIR = (CHECKOUT or Path()) / "benchmarks" / "results"
 """The committed reference results of the source checkout (changed only with `--update-reference`).
@@ -105,6 +106,16 @@ class SweepOptions:
             return Path(self.out)
         assert self.run_dir is not None
         return self.run_dir
+
+
+def at_least(value: object, least: int) -> bool:
+    """An integer (numpy's too, not a bool) >= `least`: a count of trials, seeds, workers."""
+    return is_integer(value) and value >= least  # type: ignore[operator]
+
+
+def positive(value: object) -> bool:
+    """A finite real number > 0 (not a bool): hours, a duration, a rate."""
+    return is_number(value) and value > 0  # type: ignore[operator]
 
 
 def refuse_invalid(settings: object, checks: Sequence[tuple[str, bool, str]]) -> None:

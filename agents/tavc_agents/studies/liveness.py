@@ -43,7 +43,14 @@ from tavc_agents.experiments.provenance import run_recorded
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import run_trial
 from tavc_agents.experiments.sweep import json_jobs
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid
+from tavc_agents.studies.common import (
+    RESULTS_DIR,
+    Outcome,
+    SweepOptions,
+    at_least,
+    positive,
+    refuse_invalid,
+)
 from tavc_env.config import ArenaConfig, Robot
 from tavc_env.engine.simulation import JAM_MOTION_M, JAM_WINDOW_S
 
@@ -54,19 +61,6 @@ REFUSED_K = 7  # the team of 14 the report shows refused
 RANDOM_BINS = ((2, 6), (7, 12), (13, 18), (19, 24))  # team sizes of the random arenas, grouped
 CONFIDENCE = 0.95
 Row = dict[str, Any]
-
-
-def _int(value: object, least: int) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= least
-
-
-def _positive(value: object) -> bool:
-    return (
-        isinstance(value, (int, float))
-        and not isinstance(value, bool)
-        and math.isfinite(value)
-        and value > 0
-    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -104,26 +98,26 @@ class Settings(SweepOptions):
         teams_ok = (
             isinstance(self.teams, tuple)
             and len(self.teams) >= 1
-            and all(_int(k, 1) and k <= DAHL_MAX_K for k in self.teams)
+            and all(at_least(k, 1) and k <= DAHL_MAX_K for k in self.teams)
             and len(set(self.teams)) == len(self.teams)
         )
         per_circuit_ok = (
             isinstance(self.per_circuit, tuple)
             and len(self.per_circuit) >= 1
-            and all(_int(n, 1) for n in self.per_circuit)
+            and all(at_least(n, 1) for n in self.per_circuit)
             and len(set(self.per_circuit)) == len(self.per_circuit)
         )
         checks = [
-            ("hours", _positive(self.hours), "> 0"),
-            ("seeds", _int(self.seeds, 1), "an integer >= 1"),
-            ("seed0", _int(self.seed0, 0), "an integer >= 0"),
+            ("hours", positive(self.hours), "> 0"),
+            ("seeds", at_least(self.seeds, 1), "an integer >= 1"),
+            ("seed0", at_least(self.seed0, 0), "an integer >= 0"),
             ("teams", teams_ok, f"distinct integers k in [1, {DAHL_MAX_K}] (k fast + k slow)"),
             ("per_circuit", per_circuit_ok, "distinct integers >= 1"),
-            ("arenas", _int(self.arenas, 0), "an integer >= 0"),
-            ("arena_seed", _int(self.arena_seed, 0), "an integer >= 0"),
-            ("random_hours", _positive(self.random_hours), "> 0"),
-            ("random_seeds", _int(self.random_seeds, 1), "an integer >= 1"),
-            ("max_gap_min", _positive(self.max_gap_min), "> 0"),
+            ("arenas", at_least(self.arenas, 0), "an integer >= 0"),
+            ("arena_seed", at_least(self.arena_seed, 0), "an integer >= 0"),
+            ("random_hours", positive(self.random_hours), "> 0"),
+            ("random_seeds", at_least(self.random_seeds, 1), "an integer >= 1"),
+            ("max_gap_min", positive(self.max_gap_min), "> 0"),
         ]
         refuse_invalid(self, checks)
 

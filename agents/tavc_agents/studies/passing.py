@@ -37,7 +37,15 @@ from tavc_agents.experiments.provenance import run_metadata, run_recorded
 from tavc_agents.experiments.sweep import run_jobs
 from tavc_agents.experiments.twin_batch import run_batch
 from tavc_agents.studies import regime_map as rm
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.common import (
+    RESULTS_DIR,
+    Outcome,
+    SweepOptions,
+    at_least,
+    positive,
+    refuse_invalid,
+    replace,
+)
 from tavc_agents.studies.elasticity import measure_elasticity
 from tavc_agents.studies.twin_batch import learner_of
 from tavc_env.twin import InterferenceTables
@@ -83,33 +91,27 @@ class Settings(SweepOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
 
-        def count(value: object, least: int) -> bool:
-            return isinstance(value, int) and not isinstance(value, bool) and value >= least
-
-        def hours(value: object) -> bool:
-            return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
-
         refuse_invalid(
             self,
             [
                 ("stage", self.stage in ("predict", "test"), "predict or test"),
                 ("arena", self.arena in rm.ARENAS, f"one of {', '.join(rm.ARENAS)}"),
-                ("twin_trials", count(self.twin_trials, 2), "an integer >= 2"),
-                ("min_decisive", count(self.min_decisive, 2), "an integer >= 2"),
+                ("twin_trials", at_least(self.twin_trials, 2), "an integer >= 2"),
+                ("min_decisive", at_least(self.min_decisive, 2), "an integer >= 2"),
                 (
                     "max_decisive",
-                    count(self.max_decisive, 2) and self.max_decisive >= self.min_decisive,
+                    at_least(self.max_decisive, 2) and self.max_decisive >= self.min_decisive,
                     "an integer >= min_decisive",
                 ),
-                ("control_trials", count(self.control_trials, 2), "an integer >= 2"),
-                ("other_trials", count(self.other_trials, 2), "an integer >= 2"),
-                ("convergence_h", hours(self.convergence_h), "a finite number > 0"),
-                ("measured_h", hours(self.measured_h), "a finite number > 0"),
-                ("e_seeds", count(self.e_seeds, 2), "an integer >= 2"),
-                ("e_hours", hours(self.e_hours), "a finite number > 0"),
-                ("table_seeds", count(self.table_seeds, 1), "an integer >= 1"),
-                ("table_hours", hours(self.table_hours), "a finite number > 0"),
-                ("seed", count(self.seed, 0), "an integer >= 0"),
+                ("control_trials", at_least(self.control_trials, 2), "an integer >= 2"),
+                ("other_trials", at_least(self.other_trials, 2), "an integer >= 2"),
+                ("convergence_h", positive(self.convergence_h), "a finite number > 0"),
+                ("measured_h", positive(self.measured_h), "a finite number > 0"),
+                ("e_seeds", at_least(self.e_seeds, 2), "an integer >= 2"),
+                ("e_hours", positive(self.e_hours), "a finite number > 0"),
+                ("table_seeds", at_least(self.table_seeds, 1), "an integer >= 1"),
+                ("table_hours", positive(self.table_hours), "a finite number > 0"),
+                ("seed", at_least(self.seed, 0), "an integer >= 0"),
             ],
         )
 

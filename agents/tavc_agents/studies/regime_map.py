@@ -45,7 +45,15 @@ from tavc_agents.experiments.provenance import run_metadata, run_recorded
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.experiments.sweep import arena_digest, json_jobs, run_jobs, saved_results
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.common import (
+    RESULTS_DIR,
+    Outcome,
+    SweepOptions,
+    at_least,
+    positive,
+    refuse_invalid,
+    replace,
+)
 from tavc_agents.studies.elasticity import measure_elasticity
 from tavc_env import metrics
 from tavc_env.twin import InterferenceTables, build_tables
@@ -98,14 +106,6 @@ CONDITIONS: Mapping[str, tuple[str, Mapping[str, Any]]] = {
 """Condition name -> (allocator, its parameters)."""
 
 
-def _positive_int(value: object, least: int = 1) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool) and value >= least
-
-
-def _positive(value: object) -> bool:
-    return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
-
-
 @dataclass(frozen=True, kw_only=True)
 class Settings(SweepOptions):
     """The regime map's settings (its command line)."""
@@ -149,16 +149,16 @@ class Settings(SweepOptions):
                 f"{', '.join(ARENAS)}"
             )
         checks = [
-            ("trials", _positive_int(self.trials, 2), "an integer >= 2"),
-            ("decisive_trials", _positive_int(self.decisive_trials, 2), "an integer >= 2"),
-            ("twin_trials", _positive_int(self.twin_trials, 0), "an integer >= 0"),
-            ("convergence_h", _positive(self.convergence_h), "a finite number > 0"),
-            ("measured_h", _positive(self.measured_h), "a finite number > 0"),
-            ("e_seeds", _positive_int(self.e_seeds, 2), "an integer >= 2"),
-            ("e_hours", _positive(self.e_hours), "a finite number > 0"),
-            ("table_seeds", _positive_int(self.table_seeds, 1), "an integer >= 1"),
-            ("table_hours", _positive(self.table_hours), "a finite number > 0"),
-            ("seed", _positive_int(self.seed, 0), "an integer >= 0"),
+            ("trials", at_least(self.trials, 2), "an integer >= 2"),
+            ("decisive_trials", at_least(self.decisive_trials, 2), "an integer >= 2"),
+            ("twin_trials", at_least(self.twin_trials, 0), "an integer >= 0"),
+            ("convergence_h", positive(self.convergence_h), "a finite number > 0"),
+            ("measured_h", positive(self.measured_h), "a finite number > 0"),
+            ("e_seeds", at_least(self.e_seeds, 2), "an integer >= 2"),
+            ("e_hours", positive(self.e_hours), "a finite number > 0"),
+            ("table_seeds", at_least(self.table_seeds, 1), "an integer >= 1"),
+            ("table_hours", positive(self.table_hours), "a finite number > 0"),
+            ("seed", at_least(self.seed, 0), "an integer >= 0"),
         ]
         refuse_invalid(self, checks)
 

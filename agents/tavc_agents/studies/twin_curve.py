@@ -43,7 +43,15 @@ from tavc_agents.experiments.provenance import run_recorded
 from tavc_agents.experiments.sweep import json_jobs
 from tavc_agents.experiments.twin_batch import run_batch
 from tavc_agents.studies import regime_map as rm
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.common import (
+    RESULTS_DIR,
+    Outcome,
+    SweepOptions,
+    at_least,
+    positive,
+    refuse_invalid,
+    replace,
+)
 from tavc_agents.studies.twin_batch import learner_of
 
 CONDITIONS = (*(rm.softmax_condition(t) for t in (0.002, 0.005, 0.01)), "epsilon_0.1")
@@ -92,12 +100,6 @@ class Settings(SweepOptions):
         low, high = reach(Family(), self.above) if self.above in ("pace", "wait") else (0, 0)
         ok = bool(grid) and all(low <= e <= high for e in grid) and len(set(grid)) == len(grid)
 
-        def count(value: object, least: int) -> bool:
-            return isinstance(value, int) and not isinstance(value, bool) and value >= least
-
-        def hours(value: object) -> bool:
-            return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
-
         refuse_invalid(
             self,
             [
@@ -108,11 +110,11 @@ class Settings(SweepOptions):
                     f"distinct comma-separated numbers in [{low:.4f}, {high:.4f}] (what the "
                     f"family reaches with {self.above!r} above 1)",
                 ),
-                ("trials", count(self.trials, 2), "an integer >= 2"),
-                ("convergence_h", hours(self.convergence_h), "a finite number > 0"),
-                ("measured_h", hours(self.measured_h), "a finite number > 0"),
-                ("seed", count(self.seed, 0), "an integer >= 0"),
-                ("resamples", count(self.resamples, 1), "an integer >= 1"),
+                ("trials", at_least(self.trials, 2), "an integer >= 2"),
+                ("convergence_h", positive(self.convergence_h), "a finite number > 0"),
+                ("measured_h", positive(self.measured_h), "a finite number > 0"),
+                ("seed", at_least(self.seed, 0), "an integer >= 0"),
+                ("resamples", at_least(self.resamples, 1), "an integer >= 1"),
                 (
                     "regime_map_dir",
                     (Path(self.regime_map_dir) / "regime_map.csv").is_file(),
