@@ -19,6 +19,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.stats import bootstrap_ratio_ci, mean_ci, mean_sd, ratio_ci
 from tavc_agents.experiments.measurement import FixedRun
 from tavc_env.engine.tasks import Mode
@@ -403,12 +404,8 @@ def plot_interference(
     """Four panels: t(n) and t(n)/t(n-1) per circuit with 95 % intervals (a dashed line at
     `ratio_line`), and a fast and a slow robot's task time on circuit 0 against the fast and slow
     robots there (matplotlib needed). `preset` and `homog` name the arenas in the titles."""
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 2, figsize=(12, 9.5))
+    fig, axes = subplots(2, 2, figsize=(12, 9.5))
     ax = axes[0, 0]
     _curve_panel(ax, summary_rows, "t_n", "mean task time (s)")
     ax.set_xlabel("robots on the circuit, n")
@@ -431,4 +428,3 @@ def plot_interference(
         _matrix_panel(ax, fig, cross[(0, cls)], cls, vmin, vmax, preset)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)

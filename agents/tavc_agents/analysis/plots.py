@@ -24,15 +24,17 @@ CIRCUIT_COLOURS = ["tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange
 CLASS_COLOURS = {"fast": "tab:red", "medium": "tab:green", "slow": "tab:blue"}
 
 
-def _pyplot() -> Any:
+def subplots(nrows: int = 1, ncols: int = 1, **kwargs: Any) -> tuple[Any, Any]:
+    """A figure and its axes as `pyplot.subplots` makes them, but without pyplot: no global state
+    to leak, and the caller's backend (a notebook's, say) is left alone. `figsize` goes to the
+    figure, everything else to `Figure.subplots`. Saved figures are drawn by matplotlib's Agg
+    canvas, whatever backend is selected."""
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from matplotlib.figure import Figure
     except ImportError as error:
         raise ImportError("plots need matplotlib: pip install 'tavc-env[plot]'") from error
-    return plt
+    fig = Figure(figsize=kwargs.pop("figsize", None))
+    return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
 def allocation_timeline(
@@ -43,8 +45,9 @@ def allocation_timeline(
 ) -> None:
     """Which circuit each robot served over time, one panel per trial (its label on the left);
     broken periods dark, recorded events (breakdown, repair, value change) dashed."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(len(trials), 1, figsize=(11, 1.4 + 1.1 * len(trials)), sharex=True)
+    from matplotlib.patches import Rectangle
+
+    fig, axes = subplots(len(trials), 1, figsize=(11, 1.4 + 1.1 * len(trials)), sharex=True)
     n_circuits = 1
     for ax, (label, r) in zip(np.atleast_1d(axes), trials.items()):
         t0 = 0.0 if from_h is None else from_h * 3600.0
@@ -81,15 +84,14 @@ def allocation_timeline(
         ax.set_ylabel(label, rotation=0, ha="right", va="center", fontsize=8)
     np.atleast_1d(axes)[-1].set_xlabel("simulated hours (dashed: recorded events)")
     handles = [
-        plt.Rectangle((0, 0), 1, 1, color=CIRCUIT_COLOURS[c % len(CIRCUIT_COLOURS)])
+        Rectangle((0, 0), 1, 1, color=CIRCUIT_COLOURS[c % len(CIRCUIT_COLOURS)])
         for c in range(n_circuits)
     ]
-    handles.append(plt.Rectangle((0, 0), 1, 1, color="0.2"))
+    handles.append(Rectangle((0, 0), 1, 1, color="0.2"))
     labels = [f"circuit {c}" for c in range(n_circuits)] + ["broken"]
     fig.legend(handles, labels, loc="upper center", ncol=n_circuits + 1, fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def q_gaps(result: TrialResult) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -114,9 +116,8 @@ def q_trajectories(result: TrialResult, path: str | Path) -> None:
             f"trial {result.label or result.seed!r} has no Q snapshots; allowed: a trial of "
             "learning robots (softmax_tavc, epsilon_tavc)"
         )
-    plt = _pyplot()
     times, gaps = q_gaps(result)
-    fig, ax = plt.subplots(figsize=(9, 4.5))
+    fig, ax = subplots(figsize=(9, 4.5))
     by_class: dict[str, list[np.ndarray]] = {}
     for i, agent in enumerate(result.agents):
         if agent not in gaps:
@@ -137,7 +138,6 @@ def q_trajectories(result: TrialResult, path: str | Path) -> None:
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def interference_curve(summary_csv: str | Path, path: str | Path) -> None:
@@ -153,8 +153,7 @@ def interference_curve(summary_csv: str | Path, path: str | Path) -> None:
             f"{summary_csv} has no t(n) rows; allowed: the interference.csv written by "
             "benchmarks/interference.py"
         )
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    fig, ax = subplots(figsize=(6.5, 4.5))
     for c in sorted({int(r["circuit"]) for r in rows}):
         mine = sorted(
             (r for r in rows if int(r["circuit"]) == c), key=lambda r: int(r["n_on_circuit"])
@@ -180,7 +179,6 @@ def interference_curve(summary_csv: str | Path, path: str | Path) -> None:
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def _float(text: str, default: float) -> float:
@@ -237,13 +235,15 @@ def differentiation_figure(
     arena), and the twin's prediction (open diamonds) and physics result (stars) for the arena
     where robots can pass. One colour per condition, in the order of `curves`; the e = 1 and
     zero lines. A note says what is missing when `predicted` or `result` is empty."""
-    plt = _pyplot()
+    import matplotlib
+    from matplotlib.lines import Line2D
+
     conditions = [c.condition for c in curves]
     conditions += sorted({p.condition for p in (*physics, *predicted, *result)} - {*conditions})
-    palette = plt.get_cmap("tab10")
+    palette = matplotlib.colormaps["tab10"]
     colour = {c: palette(k) for k, c in enumerate(conditions)}
     offset = {c: (k - (len(conditions) - 1) / 2) * 0.018 for k, c in enumerate(conditions)}
-    fig, ax = plt.subplots(figsize=(10.5, 6.2))
+    fig, ax = subplots(figsize=(10.5, 6.2))
     for curve in curves:
         ax.fill_between(curve.e, curve.low, curve.high, color=colour[curve.condition], alpha=0.18)
         ax.plot(curve.e, curve.mean, "-", color=colour[curve.condition], lw=1.8)
@@ -315,16 +315,16 @@ def differentiation_figure(
             fontsize=8,
             color="0.35",
         )
-    handles = [plt.Line2D([], [], color=colour[c], lw=6, alpha=0.5, label=c) for c in conditions]
+    handles = [Line2D([], [], color=colour[c], lw=6, alpha=0.5, label=c) for c in conditions]
     handles += [
-        plt.Line2D(
+        Line2D(
             [],
             [],
             color="0.3",
             lw=1.8,
             label=f"model twin, synthetic tables ({twin_trials} trials per point, 95 % band)",
         ),
-        plt.Line2D(
+        Line2D(
             [],
             [],
             color="0.3",
@@ -336,7 +336,7 @@ def differentiation_figure(
     pending = []
     if predicted:
         handles.append(
-            plt.Line2D(
+            Line2D(
                 [],
                 [],
                 color="0.3",
@@ -350,7 +350,7 @@ def differentiation_figure(
         pending.append("its twin prediction")
     if result:
         handles.append(
-            plt.Line2D(
+            Line2D(
                 [],
                 [],
                 color="0.3",
@@ -388,4 +388,3 @@ def differentiation_figure(
     ax.grid(alpha=0.25)
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)

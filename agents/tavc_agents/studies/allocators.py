@@ -42,6 +42,7 @@ from typing import Any, Literal
 import numpy as np
 
 from tavc_agents.analysis import allocation
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.registry import REGISTRY, allocator_names
@@ -413,13 +414,9 @@ def settle_text(row: Mapping[str, Any]) -> str:
 def plot(summary: Sequence[Mapping[str, Any]], path: Path) -> None:
     """Delivered value and the allocation's model value, as fractions of the optimum, one panel
     per preset."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     presets = list(dict.fromkeys(r["preset"] for r in summary))
-    fig, axes = plt.subplots(1, len(presets), figsize=(6 * len(presets), 4.2), sharey=True)
+    fig, axes = subplots(1, len(presets), figsize=(6 * len(presets), 4.2), sharey=True)
     for ax, preset in zip(np.atleast_1d(axes), presets):
         rows = [r for r in summary if r["preset"] == preset]
         x = np.arange(len(rows))
@@ -446,7 +443,6 @@ def plot(summary: Sequence[Mapping[str, Any]], path: Path) -> None:
     np.atleast_1d(axes)[0].legend(loc="lower left", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)
 
 
 # -- reproduction ----------------------------------------------------------------------------------

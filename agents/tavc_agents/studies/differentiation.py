@@ -34,6 +34,7 @@ from typing import Any, Literal
 import numpy as np
 
 from tavc_agents.analysis.measures import TrialMeasures, measure
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
@@ -313,12 +314,8 @@ def paired_to_lowest_temperature(
 
 def plot(rows: list[dict[str, Any]], temperature_of: Mapping[str, float], path: Path) -> None:
     """Fast - slow and performance / random against the softmax temperature, per regime."""
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig, axes = subplots(1, 2, figsize=(11, 4))
     for regime in dict.fromkeys(r["regime"] for r in rows):
         pts = [r for r in rows if r["regime"] == regime and r["condition"] in temperature_of]
         temps = [temperature_of[r["condition"]] for r in pts]
@@ -343,4 +340,3 @@ def plot(rows: list[dict[str, Any]], temperature_of: Mapping[str, float], path: 
     axes[1].set_title("Performance relative to random, 95 % CI")
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)

@@ -19,6 +19,7 @@ import numpy as np
 
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.measures import measure
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.files import atomic_path
@@ -250,10 +251,9 @@ def what_it_learned(run: LearningRun) -> str:
 
 
 def plot_curve(run: LearningRun, path: Path) -> None:
-    import matplotlib.pyplot as plt
 
     steps = [r.step for r in run.curve]
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.6))
+    fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 3.6))
     ax1.plot(steps, [r.evaluation.performance for r in run.curve], marker="o", label=run.name)
     ax1.set_xlabel("env steps of training")
     ax1.set_ylabel("value / robot / 10 s (greedy)")
@@ -269,7 +269,6 @@ def plot_curve(run: LearningRun, path: Path) -> None:
     fig.suptitle(f"{run.title}: greedy evaluations during training")
     fig.tight_layout()
     fig.savefig(path, dpi=110, format="png")
-    plt.close(fig)
 
 
 def write_learning_run(run: LearningRun, out: Path) -> list[Path]:

@@ -39,6 +39,7 @@ from scipy import stats
 import tavc_env
 from tavc_agents.analysis.elasticity import Elasticity
 from tavc_agents.analysis.measures import measure
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.provenance import run_metadata, run_recorded
@@ -612,14 +613,12 @@ def report_body(rows: Sequence[Row], s: Settings) -> str:
 def plot(rows: Sequence[Row], path: Path) -> None:
     """Fast - slow against e: physics points with 95 % intervals, the twin's curve, per
     condition."""
+
     import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig, ax = subplots(figsize=(8, 5))
     learning = [c for c in CONDITIONS if c != "random"]
-    colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(learning)))
+    colours = matplotlib.colormaps["viridis"](np.linspace(0, 0.9, len(learning)))
     for k, (condition, colour) in enumerate(zip(learning, colours)):
         pts = sorted((r for r in rows if r["condition"] == condition), key=lambda r: r["e"])
         if not pts:
@@ -648,7 +647,6 @@ def plot(rows: Sequence[Row], path: Path) -> None:
     ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)
 
 
 # -- the study ----------------------------------------------------------------------------------

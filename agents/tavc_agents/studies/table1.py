@@ -35,6 +35,7 @@ from typing import Any, Literal
 import numpy as np
 
 from tavc_agents.analysis.measures import TrialMeasures, measure
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, mean_sd, ratio_ci, welch
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
@@ -518,13 +519,9 @@ def occupancy_markdown(by: dict[str, list[TrialMeasures]], names: Mapping[str, s
 # -- figures -------------------------------------------------------------------------------------
 def plot_figure2(rows: list[dict[str, Any]], path: Path) -> None:
     """The paper's Figure 2: softmax TAVC minus random per state, absolute and relative."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     states = [r["state"] for r in rows]
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig, axes = subplots(2, 1, figsize=(9, 6), sharex=True)
     axes[0].bar(states, [r["a_minus_r"] for r in rows], color="tab:blue")
     axes[0].set_ylabel("mu_a - mu_r (% of time)")
     axes[1].bar(states, [r["a_minus_r_rel"] for r in rows], color="tab:orange")
@@ -535,19 +532,14 @@ def plot_figure2(rows: list[dict[str, Any]], path: Path) -> None:
     axes[0].set_title("Softmax TAVC against random allocation (cf. the paper's Figure 2)")
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)
 
 
 def plot_performance(
     by: dict[str, list[TrialMeasures]], names: Mapping[str, str], path: Path
 ) -> None:
     """Performance per condition with 95 % intervals."""
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = subplots(figsize=(6, 4))
     labels_, means, errs = [], [], []
     for cond, ms in by.items():
         m, lo, hi, _ = mean_ci([x.performance for x in ms])
@@ -562,7 +554,6 @@ def plot_performance(
     ax.set_ylim(bottom=0)  # zero-based: bar heights compare as ratios
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)
 
 
 # -- agreement with the committed reference ----------------------------------------------------------

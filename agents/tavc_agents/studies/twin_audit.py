@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.provenance import run_recorded
@@ -47,7 +48,7 @@ VARIANTS: tuple[Variant, ...] = ("physics", "twin_tables", "twin_audited_switch"
 class Settings(SweepOptions):
     """The twin audit's settings (its command line)."""
 
-    arenas: str = ",".join(regime_map.ARENAS)
+    arenas: str = ",".join(regime_map.MAPPED)
     """comma-separated subset of the regime map's arenas"""
     seeds: int = 10
     """physics runs per arena"""
@@ -298,12 +299,8 @@ def report_body(rows: Sequence[Row], s: Settings) -> str:
 
 
 def plot(rows: Sequence[Row], path: Path) -> None:
-    import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = subplots(figsize=(8, 4))
     for offset, variant, label in (
         (-0.1, "twin_tables", "twin, tables as measured"),
         (0.1, "twin_audited_switch", "twin, switch cost as paid in the physics"),
@@ -320,7 +317,6 @@ def plot(rows: Sequence[Row], path: Path) -> None:
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)
 
 
 def run(settings: Settings) -> Outcome:
