@@ -46,6 +46,6 @@ def test_the_committed_report_covers_every_cell_and_is_fast() -> None:
     assert report["metadata"]["settings"] == study.Settings(update_reference=True).recorded()
     with (folder / "twin_batch.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == len(regime_map.ARENAS) * len(regime_map.CONDITIONS)
+    assert len(rows) == len(regime_map.MAPPED) * len(regime_map.CONDITIONS)
     assert all(r["n_batch"] == "2000" and int(r["n_twin"]) >= 100 for r in rows)
     assert report["summary"]["speed"]["batch_speedup"] > 1000  # "thousands of times faster"
