@@ -20,57 +20,50 @@ scanner's 180-degree field sees). This is how the laser-based obstacle-avoidance
 Pioneer robots slow down in a crowd: every robot loses the same *fraction* of its own top speed
 at a given clearance, whatever that top speed is, so crowding in travel is multiplicative.
 
-The per-tick loop over robot pairs is one function, compiled by numba when it is installed (the
-physics loop calls it every 0.1 s of simulated time, so interpreted Python would dominate the run
-time); without numba the same function runs as plain Python.
+The per-tick loop over robot pairs is one function, compiled by numba (the physics loop calls it
+every 0.1 s of simulated time, so interpreted Python would dominate the run time); the compiled
+tick (`tavc_env.engine.tick`) calls it.
 """
 
 from __future__ import annotations
 
 import math
+import os as _os
+import warnings as _warnings
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
+from numba import njit as _njit
+from numba.core import config as _numba_config
 
 from tavc_env.config import ArenaConfig
 
-try:
-    import os as _os
-    import warnings as _warnings
+_cache_warned: list[str] = []
 
-    from numba import njit as _njit
-    from numba.core import config as _numba_config
 
-    _cache_warned: list[str] = []
-
-    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
-        """numba's compiled `fn`, cached on disk; where no cache folder can be written (a
-        read-only install run by another user), compiled at every start, with one warning."""
-        try:
-            return _njit(cache=True, fastmath=False, nogil=True)(fn)
-        except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
-            if "no locator" not in str(error):
-                raise
-        if not _cache_warned:
-            folders = [_os.path.join(_os.path.dirname(fn.__code__.co_filename), "__pycache__")]
-            user_folder = getattr(_numba_config, "CACHE_DIR", "")  # NUMBA_CACHE_DIR
-            if user_folder:
-                folders.insert(0, user_folder)
-            _cache_warned.append(folders[0])
-            _warnings.warn(
-                f"numba cannot write its cache (tried {' and '.join(folders)} and the user's "
-                "cache folder): the robots' controller is compiled anew at every start (a few "
-                "seconds); set NUMBA_CACHE_DIR to a writable folder to cache it",
-                RuntimeWarning,
-                stacklevel=2,
-            )
-        return _njit(cache=False, fastmath=False, nogil=True)(fn)
-
-except ImportError:  # pragma: no cover - numba is a dependency; this keeps a broken install usable
-
-    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
-        return fn
+def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """numba's compiled `fn`, cached on disk; where no cache folder can be written (a
+    read-only install run by another user), compiled at every start, with one warning."""
+    try:
+        return _njit(cache=True, fastmath=False, nogil=True)(fn)
+    except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
+        if "no locator" not in str(error):
+            raise
+    if not _cache_warned:
+        folders = [_os.path.join(_os.path.dirname(fn.__code__.co_filename), "__pycache__")]
+        user_folder = getattr(_numba_config, "CACHE_DIR", "")  # NUMBA_CACHE_DIR
+        if user_folder:
+            folders.insert(0, user_folder)
+        _cache_warned.append(folders[0])
+        _warnings.warn(
+            f"numba cannot write its cache (tried {' and '.join(folders)} and the user's "
+            "cache folder): the robots' controller is compiled anew at every start (a few "
+            "seconds); set NUMBA_CACHE_DIR to a writable folder to cache it",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return _njit(cache=False, fastmath=False, nogil=True)(fn)
 
 
 STEER_GAIN = 1.5  # sideways deflection per unit of obstacle weight
@@ -90,31 +83,11 @@ ESCAPE_DISTANCE_M = 1.0
 ESCAPE_TIME_S = 4.0
 
 
-class SteerArgs(NamedTuple):
-    """The arguments of `steer_all` (and, followed by the grid cell, of `steer_all_grid`), in
-    order: the robots' state, the controller's constants and the output buffers."""
-
-    pos: np.ndarray  # (n, 2) centres
-    heading: np.ndarray  # (n,) headings, read and updated in place
-    target: np.ndarray  # (n, 2) where each robot drives
-    moving: np.ndarray  # (n,) bool: drives (False: holds still)
-    top_speed: np.ndarray  # (n,) this leg's top speed
-    present: np.ndarray  # (n,) bool: on the floor (False: broken)
-    radius: float
-    sensing: float
-    governor: float  # clearance (m) below which speed is governed; 0: no governor
-    turn_step: float  # largest heading change per tick
-    width: float
-    height: float
-    out_velocity: np.ndarray  # (n, 2) commands written here
-    out_heading: np.ndarray  # (n,) new headings written here
-
-
 def _clip(x: float, lo: float, hi: float) -> float:
     return lo if x < lo else hi if x > hi else x
 
 
-_clip_c = _compile(_clip)
+_clip_c = compiled(_clip)
 
 
 def _steer_one(
@@ -215,7 +188,7 @@ def _steer_one(
     out_velocity[i, 1] = speed * hy
 
 
-_steer_one_c = _compile(_steer_one)
+_steer_one_c = compiled(_steer_one)
 
 
 def _steer_all(
@@ -280,7 +253,7 @@ def _first_at_least(keys: np.ndarray, value: int) -> int:
     return lo
 
 
-_first_at_least_c = _compile(_first_at_least)
+_first_at_least_c = compiled(_first_at_least)
 
 
 def _steer_all_grid(
@@ -370,9 +343,9 @@ def _steer_all_grid(
         )
 
 
-steer_all_grid = _compile(_steer_all_grid)
+steer_all_grid = compiled(_steer_all_grid)
 GRID_MIN_ROBOTS = 16  # from this team size on the grid is faster than all pairs
-steer_all = _compile(_steer_all)
+steer_all = compiled(_steer_all)
 
 
 def _arrivals(pos: np.ndarray, target: np.ndarray, trigger: np.ndarray, out: np.ndarray) -> int:
@@ -389,7 +362,7 @@ def _arrivals(pos: np.ndarray, target: np.ndarray, trigger: np.ndarray, out: np.
     return k
 
 
-arrivals = _compile(_arrivals)
+arrivals = compiled(_arrivals)
 
 
 def _stuck(
@@ -423,7 +396,7 @@ def _stuck(
     return k
 
 
-stuck = _compile(_stuck)
+stuck = compiled(_stuck)
 
 
 def _after_step(
@@ -452,7 +425,7 @@ def _after_step(
 
 _arrivals_c = arrivals
 _stuck_c = stuck
-after_step = _compile(_after_step)
+after_step = compiled(_after_step)
 
 
 class Navigator:
