@@ -90,6 +90,19 @@ def _clip(x: float, lo: float, hi: float) -> float:
 _clip_c = compiled(_clip)
 
 
+def _wrap(x: float) -> float:
+    """`(x + pi) % (2 pi) - pi`, bit for bit: where `x + pi` already lies in [0, 2 pi) the modulo
+    returns it unchanged, so it is skipped (a float modulo is a library call, the most common
+    one in the controller)."""
+    t = x + math.pi
+    if 0.0 <= t < 2.0 * math.pi:
+        return t - math.pi
+    return t % (2.0 * math.pi) - math.pi
+
+
+_wrap_c = compiled(_wrap)
+
+
 def _steer_one(
     i: int,
     pos: np.ndarray,
@@ -158,9 +171,9 @@ def _steer_one(
     want_y -= _clip_c((py - (height - wall_lo)) / WALL_RANGE_M, 0.0, 1.0)
 
     phi = math.atan2(want_y, want_x)
-    err = (phi - heading[i] + math.pi) % (2.0 * math.pi) - math.pi
+    err = _wrap_c(phi - heading[i])
     turn = _clip_c(err, -turn_step, turn_step)
-    h = (heading[i] + turn + math.pi) % (2.0 * math.pi) - math.pi
+    h = _wrap_c(heading[i] + turn)
     c = max(math.cos(err - turn), 0.0)
     speed = min(top_speed[i] * c * c, gdist / APPROACH_TIME_S)
 
