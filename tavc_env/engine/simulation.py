@@ -140,7 +140,7 @@ class Simulation:
         self._stalled = np.zeros(n, dtype=np.int64)
         self._dt = config.dt
         self._tick_args: TickArgs | None = None
-        self._bound: tuple[object, ...] = (None,) * 5
+        self._bound: tuple[object, ...] = (None,) * 6
         self._next_service = math.inf  # earliest end of a loading / unloading
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
@@ -310,7 +310,9 @@ class Simulation:
             arrived=self._hits,
             stalled=self._stalled,
         )
-        self._bound = (world.version, tasks, self.heading, self.top_speed, self._anchor)
+        # the world itself too: a new World starts counting versions anew, and the compiled
+        # tick must never call into the C space of one that is gone
+        self._bound = (world, world.version, tasks, self.heading, self.top_speed, self._anchor)
 
     def _ticks(self, out: Advance, max_ticks: int) -> int:
         """Run up to `max_ticks` ticks, stopping after the first that ends in a task event (see
@@ -320,11 +322,12 @@ class Simulation:
         world, tasks = self.world, self.tasks
         bound = self._bound
         if (
-            bound[0] != world.version
-            or bound[1] is not tasks
-            or bound[2] is not self.heading
-            or bound[3] is not self.top_speed
-            or bound[4] is not self._anchor
+            bound[0] is not world
+            or bound[1] != world.version
+            or bound[2] is not tasks
+            or bound[3] is not self.heading
+            or bound[4] is not self.top_speed
+            or bound[5] is not self._anchor
         ):
             self._bind()
         assert self._tick_args is not None
