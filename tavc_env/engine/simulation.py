@@ -337,7 +337,7 @@ class Simulation:
             self._dt,
             self._escapes_end,
             self._next_service,
-            self._schedule[0].at_s if self._schedule else math.inf,
+            float(self._schedule[0].at_s) if self._schedule else math.inf,
             self._progress_s,
             self.jam_window_s,
             *self._tick_args,
