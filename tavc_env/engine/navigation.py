@@ -22,7 +22,7 @@ at a given clearance, whatever that top speed is, so crowding in travel is multi
 
 The per-tick loop over robot pairs is one function, compiled by numba (the physics loop calls it
 every 0.1 s of simulated time, so interpreted Python would dominate the run time); the compiled
-tick (`tavc_env.engine.tick`) calls it.
+tick at the end of this file (`run_ticks`) calls it with the physics step.
 """
 
 from __future__ import annotations
@@ -31,11 +31,14 @@ import math
 import os as _os
 import warnings as _warnings
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+from llvmlite import ir
 from numba import njit as _njit
+from numba import types
 from numba.core import config as _numba_config
+from numba.extending import intrinsic
 
 from tavc_env.config import ArenaConfig
 
@@ -451,3 +454,208 @@ class Navigator:
         self.turn_step = config.max_turn_rate * config.dt
         self.width = config.width
         self.height = config.height
+
+
+# -- the compiled tick ---------------------------------------------------------------------------
+# Steer, push velocities, step Chipmunk, read positions, and check arrivals and stuck robots, tick
+# after tick, without returning to Python while nothing happens. Each tick makes the calls a tick
+# driven from Python made, in the same order and on the same arrays (the controller above,
+# pymunk's batch iterators and `cpSpaceStep` through the addresses in `World.c_calls`), so
+# trajectories are bit for bit the same. The loop hands back to `Simulation` the first tick whose
+# end needs the task rules (a service or schedule entry due, an arrival, a stuck robot, a jam
+# check); Python finishes that tick. It lives in this file with every compiled function it calls:
+# numba's on-disk cache of a function is renewed when its own file changes, not when a function
+# it calls in another file does.
+# Addresses travel as int64 (numba's type of a Python int) and become pointers only in the call.
+_VOID_P = ir.IntType(8).as_pointer()
+
+
+def _space_step(typingctx: object, fn: types.Type, space: types.Type, dt: types.Type) -> object:
+    """`cpSpaceStep(space, dt)` through its address `fn`."""
+
+    def codegen(
+        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
+    ) -> object:
+        kind = ir.FunctionType(ir.VoidType(), [_VOID_P, ir.DoubleType()])
+        call = builder.inttoptr(args[0], kind.as_pointer())
+        builder.call(call, [builder.inttoptr(args[1], _VOID_P), args[2]])
+        return context.get_dummy_value()  # type: ignore[attr-defined]
+
+    return types.void(types.int64, types.int64, types.float64), codegen
+
+
+def _each_body(
+    typingctx: object, fn: types.Type, space: types.Type, visit: types.Type, data: types.Type
+) -> object:
+    """`cpSpaceEachBody(space, visit, data)` through its address `fn`."""
+
+    def codegen(
+        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
+    ) -> object:
+        kind = ir.FunctionType(ir.VoidType(), [_VOID_P, _VOID_P, _VOID_P])
+        call = builder.inttoptr(args[0], kind.as_pointer())
+        builder.call(call, [builder.inttoptr(a, _VOID_P) for a in args[1:]])
+        return context.get_dummy_value()  # type: ignore[attr-defined]
+
+    return types.void(types.int64, types.int64, types.int64, types.int64), codegen
+
+
+def _set_count(typingctx: object, array: types.Type, count: types.Type) -> object:
+    """Set the `num` (an int, first field) of the pymunk float array at address `array`; return
+    the old one. pymunk's batch iterators read and write from index `num` on, advancing it."""
+
+    def codegen(
+        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
+    ) -> object:
+        at = builder.inttoptr(args[0], ir.IntType(32).as_pointer())
+        old = builder.load(at)
+        builder.store(builder.trunc(args[1], ir.IntType(32)), at)
+        return builder.sext(old, ir.IntType(64))
+
+    return types.int64(types.int64, types.int64), codegen
+
+
+# numba's intrinsic wrappers (callable from compiled code only)
+space_step: Any = intrinsic(_space_step)
+each_body: Any = intrinsic(_each_body)
+set_count: Any = intrinsic(_set_count)
+
+# indices into `World.c_calls` (tavc_env.engine.world fills it)
+C_STEP, C_EACH_BODY, C_SPACE, C_SET_VISIT, C_SET_DATA, C_SET_FLOATS = 0, 1, 2, 3, 4, 5
+C_GET_VISIT, C_GET_DATA, C_GET_FLOATS = 6, 7, 8
+
+
+QUIET = 0  # every tick ran to its end: nothing for the task rules
+DUE = 1  # the last tick's physics ran; a service or schedule entry is due: Python checks it all
+CHECKED = 2  # the last tick's physics and after-step check ran; its results need the task rules
+
+
+class TickArgs(NamedTuple):
+    """The loop's arrays and constants, bound once (rebuilt when the world's slots change, the
+    task cycle is replaced, or robots' headings or speeds arrays are)."""
+
+    c_calls: np.ndarray  # World.c_calls
+    pos: np.ndarray  # (n, 2) World.pos, written after each step
+    heading: np.ndarray
+    target: np.ndarray
+    moving: np.ndarray
+    top_speed: np.ndarray
+    present: np.ndarray
+    radius: float
+    sensing: float
+    governor: float
+    turn_step: float
+    width: float
+    height: float
+    velocity: np.ndarray  # (n, 2) World.velocity_out, the commands
+    cell: float  # the neighbour grid's cell; 0: all pairs
+    # the world's scatter, when its batch order is not the robots' (after a breakdown)
+    in_order: bool
+    robots_in: np.ndarray
+    slots: np.ndarray
+    positions_in: np.ndarray
+    velocities_in: np.ndarray
+    # escapes, the after-step checks
+    escape_until: np.ndarray
+    escape_target: np.ndarray
+    aim: np.ndarray  # (n, 2) scratch: the targets steered at while someone escapes
+    trigger: np.ndarray
+    anchor: np.ndarray
+    anchor_time: np.ndarray
+    patience_s: float
+    arrived: np.ndarray
+    stalled: np.ndarray
+
+
+def _run_ticks(
+    max_ticks: int,
+    ticks: int,
+    dt: float,
+    escapes_end: float,
+    next_service: float,
+    next_schedule: float,
+    progress_s: float,
+    jam_window_s: float,
+    c_calls: np.ndarray,
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    governor: float,
+    turn_step: float,
+    width: float,
+    height: float,
+    velocity: np.ndarray,
+    cell: float,
+    in_order: bool,
+    robots_in: np.ndarray,
+    slots: np.ndarray,
+    positions_in: np.ndarray,
+    velocities_in: np.ndarray,
+    escape_until: np.ndarray,
+    escape_target: np.ndarray,
+    aim: np.ndarray,
+    trigger: np.ndarray,
+    anchor: np.ndarray,
+    anchor_time: np.ndarray,
+    patience_s: float,
+    arrived: np.ndarray,
+    stalled: np.ndarray,
+) -> tuple[int, int, int, int]:
+    """Up to `max_ticks` ticks from tick number `ticks`. Returns (ticks run, QUIET / DUE /
+    CHECKED, arrived count, stalled count) with the counts of `after_step` if CHECKED."""
+    space = c_calls[C_SPACE]
+    each = c_calls[C_EACH_BODY]
+    for k in range(max_ticks):
+        steer_at = target
+        if escapes_end > ticks * dt:  # Simulation.time_s before this tick
+            now_before = ticks * dt
+            for i in range(target.shape[0]):
+                src = escape_target if escape_until[i] > now_before else target
+                aim[i, 0] = src[i, 0]
+                aim[i, 1] = src[i, 1]
+            steer_at = aim
+        if cell > 0.0:
+            steer_all_grid(
+                pos, heading, steer_at, moving, top_speed, present, radius, sensing, governor,
+                turn_step, width, height, velocity, heading, cell,
+            )  # fmt: skip
+        else:
+            steer_all(
+                pos, heading, steer_at, moving, top_speed, present, radius, sensing, governor,
+                turn_step, width, height, velocity, heading,
+            )  # fmt: skip
+        # World.push_velocities, World.step, World.sync_positions
+        if not in_order:
+            for j in range(robots_in.shape[0]):
+                velocities_in[slots[j], 0] = velocity[robots_in[j], 0]
+                velocities_in[slots[j], 1] = velocity[robots_in[j], 1]
+        count = set_count(c_calls[C_SET_FLOATS], 0)
+        each_body(each, space, c_calls[C_SET_VISIT], c_calls[C_SET_DATA])
+        set_count(c_calls[C_SET_FLOATS], count)
+        space_step(c_calls[C_STEP], space, dt)
+        set_count(c_calls[C_GET_FLOATS], 0)
+        each_body(each, space, c_calls[C_GET_VISIT], c_calls[C_GET_DATA])
+        if not in_order:
+            for j in range(robots_in.shape[0]):
+                pos[robots_in[j], 0] = positions_in[slots[j], 0]
+                pos[robots_in[j], 1] = positions_in[slots[j], 1]
+        ticks += 1
+        now = ticks * dt
+        # the first checks of Simulation._post_step, in its order
+        if next_service <= now + 1e-9 or next_schedule <= now + 1e-9:
+            return k + 1, DUE, 0, 0
+        n_arrived, n_stalled = after_step(
+            pos, target, trigger, moving, present, anchor, anchor_time, now, patience_s, True,
+            arrived, stalled,
+        )  # fmt: skip
+        if n_arrived != 0 or n_stalled != 0 or now - progress_s >= jam_window_s:
+            return k + 1, CHECKED, n_arrived, n_stalled
+    return max_ticks, QUIET, 0, 0
+
+
+run_ticks = compiled(_run_ticks)

@@ -15,17 +15,20 @@ import numpy as np
 
 from tavc_env.config import ArenaConfig
 from tavc_env.engine.navigation import (
+    CHECKED,
     ESCAPE_DISTANCE_M,
     ESCAPE_TIME_S,
     GRID_MIN_ROBOTS,
+    QUIET,
     STUCK_PATIENCE_S,
     Navigator,
+    TickArgs,
     after_step,
     neighbour_cell_m,
+    run_ticks,
     stuck,
 )
 from tavc_env.engine.tasks import Completion, Phase, TaskCycle
-from tavc_env.engine.tick import CHECKED, QUIET, TickArgs, run_ticks
 from tavc_env.engine.world import World
 
 
@@ -316,7 +319,7 @@ class Simulation:
 
     def _ticks(self, out: Advance, max_ticks: int) -> int:
         """Run up to `max_ticks` ticks, stopping after the first that ends in a task event (see
-        `tavc_env.engine.tick`); returns how many ran."""
+        `tavc_env.engine.navigation.run_ticks`); returns how many ran."""
         if self._observers:
             marks = (len(out.completions), len(out.broken), len(out.repaired), self.escapes)
         world, tasks = self.world, self.tasks

@@ -8,26 +8,34 @@ Positions are read and velocities written every tick for all robots at once thro
 API (one C call each instead of a Python attribute access per body, which dominated the tick). The
 batch visits bodies in the space's own order, so the world keeps the slot of each robot in it.
 
-The engine's compiled tick (`tavc_env.engine.tick`) makes the same C calls (Chipmunk's step and
-pymunk's batch iterators) from compiled code through the addresses in `World.c_calls`, without a
-trip through Python per tick: `each_body`, `space_step` and `set_count` below.
+The engine's compiled tick (`tavc_env.engine.navigation.run_ticks`) makes the same C calls
+(Chipmunk's step and pymunk's batch iterators) from compiled code, through the addresses in
+`World.c_calls`, without a trip through Python per tick.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import pymunk
 import pymunk.batch
-from llvmlite import ir
-from numba import types
-from numba.extending import intrinsic
 from pymunk._chipmunk_cffi import ffi as _ffi
 from pymunk._chipmunk_cffi import lib as _lib
 
 from tavc_env.config import ArenaConfig
+from tavc_env.engine.navigation import (
+    C_EACH_BODY,
+    C_GET_DATA,
+    C_GET_FLOATS,
+    C_GET_VISIT,
+    C_SET_DATA,
+    C_SET_FLOATS,
+    C_SET_VISIT,
+    C_SPACE,
+    C_STEP,
+)
 
 # pymunk's own C iterators behind pymunk.batch (pymunk 7; pinned < 8 in pyproject.toml)
 _GET_BODIES = _ffi.addressof(_lib, "pmSpaceBodyGetIteratorFuncBatched")
@@ -40,66 +48,6 @@ WALL_CATEGORY = 0b10
 
 def _address(cdata: object) -> int:
     return int(_ffi.cast("uintptr_t", cdata))
-
-
-# -- C calls from compiled code ------------------------------------------------------------------
-# Addresses travel as int64 (numba's type of a Python int) and become pointers only in the call.
-_VOID_P = ir.IntType(8).as_pointer()
-
-
-def _space_step(typingctx: object, fn: types.Type, space: types.Type, dt: types.Type) -> object:
-    """`cpSpaceStep(space, dt)` through its address `fn`."""
-
-    def codegen(
-        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
-    ) -> object:
-        kind = ir.FunctionType(ir.VoidType(), [_VOID_P, ir.DoubleType()])
-        call = builder.inttoptr(args[0], kind.as_pointer())
-        builder.call(call, [builder.inttoptr(args[1], _VOID_P), args[2]])
-        return context.get_dummy_value()  # type: ignore[attr-defined]
-
-    return types.void(types.int64, types.int64, types.float64), codegen
-
-
-def _each_body(
-    typingctx: object, fn: types.Type, space: types.Type, visit: types.Type, data: types.Type
-) -> object:
-    """`cpSpaceEachBody(space, visit, data)` through its address `fn`."""
-
-    def codegen(
-        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
-    ) -> object:
-        kind = ir.FunctionType(ir.VoidType(), [_VOID_P, _VOID_P, _VOID_P])
-        call = builder.inttoptr(args[0], kind.as_pointer())
-        builder.call(call, [builder.inttoptr(a, _VOID_P) for a in args[1:]])
-        return context.get_dummy_value()  # type: ignore[attr-defined]
-
-    return types.void(types.int64, types.int64, types.int64, types.int64), codegen
-
-
-def _set_count(typingctx: object, array: types.Type, count: types.Type) -> object:
-    """Set the `num` (an int, first field) of the pymunk float array at address `array`; return
-    the old one. pymunk's batch iterators read and write from index `num` on, advancing it."""
-
-    def codegen(
-        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
-    ) -> object:
-        at = builder.inttoptr(args[0], ir.IntType(32).as_pointer())
-        old = builder.load(at)
-        builder.store(builder.trunc(args[1], ir.IntType(32)), at)
-        return builder.sext(old, ir.IntType(64))
-
-    return types.int64(types.int64, types.int64), codegen
-
-
-# numba's intrinsic wrappers (callable from compiled code only)
-space_step: Any = intrinsic(_space_step)
-each_body: Any = intrinsic(_each_body)
-set_count: Any = intrinsic(_set_count)
-
-# indices into `World.c_calls`
-C_STEP, C_EACH_BODY, C_SPACE, C_SET_VISIT, C_SET_DATA, C_SET_FLOATS = 0, 1, 2, 3, 4, 5
-C_GET_VISIT, C_GET_DATA, C_GET_FLOATS = 6, 7, 8
 
 
 class Scatter(NamedTuple):
@@ -172,21 +120,19 @@ class World:
         self._set_args.fields = pymunk.batch.BodyFields.VELOCITY.value
         self._set_args.intArray = self._set._int_arr
         self._space_ptr = self.space._space
-        # what the compiled tick needs to make the same calls (indices C_STEP ... above)
-        self.c_calls = np.array(
-            [
-                _address(_ffi.addressof(_lib, "cpSpaceStep")),
-                _address(_ffi.addressof(_lib, "cpSpaceEachBody")),
-                _address(self._space_ptr),
-                _address(_SET_BODIES),
-                _address(self._set_args),
-                _address(self._set._float_arr),
-                _address(_GET_BODIES),
-                _address(self._get_args),
-                _address(self._get._float_arr),
-            ],
-            dtype=np.int64,
-        )
+        # what the compiled tick needs to make the same calls, at the indices it reads them
+        calls = {
+            C_STEP: _ffi.addressof(_lib, "cpSpaceStep"),
+            C_EACH_BODY: _ffi.addressof(_lib, "cpSpaceEachBody"),
+            C_SPACE: self._space_ptr,
+            C_SET_VISIT: _SET_BODIES,
+            C_SET_DATA: self._set_args,
+            C_SET_FLOATS: self._set._float_arr,
+            C_GET_VISIT: _GET_BODIES,
+            C_GET_DATA: self._get_args,
+            C_GET_FLOATS: self._get._float_arr,
+        }
+        self.c_calls = np.array([_address(calls[k]) for k in sorted(calls)], dtype=np.int64)
 
     def __getstate__(self) -> dict[str, object]:
         # Not `copy` nor `pickle`: pymunk's copy of a space keeps positions, velocities and cached
