@@ -323,13 +323,19 @@ def _steer_all_grid(
         m = 0
         x0 = max(cx[i] - 1, 0)
         x1 = min(cx[i] + 1, nx - 1)
-        for yy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
-            # cells x0..x1 of row yy are the consecutive cell numbers row + x0 .. row + x1
-            lo = _first_at_least_c(keys, yy * nx + x0)
-            hi = _first_at_least_c(keys, yy * nx + x1 + 1)
-            for k in range(lo, hi):
+        y0 = max(cy[i] - 1, 0)
+        y1 = min(cy[i] + 2, ny)
+        if not (moving[i] and present[i]):
+            y1 = y0  # it holds still and looks at nobody (`_steer_one` stops before them)
+        for yy in range(y0, y1):
+            # cells x0..x1 of row yy are the consecutive cell numbers row + x0 .. row + x1: one
+            # search for the first, then the sorted keys in order up to the last
+            k = _first_at_least_c(keys, yy * nx + x0)
+            end = yy * nx + x1 + 1
+            while k < n_present and keys[k] < end:
                 others[m] = items[k]
                 m += 1
+                k += 1
         # the cells are visited row by row: merge them into increasing index order
         for a in range(1, m):
             v = others[a]
