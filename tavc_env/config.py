@@ -46,6 +46,7 @@ MIN_SENSING_OVER_RADIUS = 2.5
 # numbers fit a 64-bit integer with room to spare.
 MAX_ARENA_SIDE_M = 1e6
 MAX_BAYS = 8  # bays per station: a loading bank, not a warehouse wall
+MAX_SCALED_ROBOTS = 400  # scaled_config: the largest team it lays out in a few seconds (128 x 3)
 
 
 def _items(name: str, value: object, kind: str) -> tuple[Any, ...]:
@@ -198,6 +199,15 @@ class ArenaConfig:
             ("breakdowns", "tavc_env.Breakdown"),
         ):
             object.__setattr__(self, name, _items(name, getattr(self, name), kind))
+        # the stations, once (validation and layout look them up per station; not a field)
+        stations = []
+        for i, c in enumerate(self.circuits):
+            if isinstance(c, Circuit):  # (anything else is refused by the validation)
+                stations.append((f"circuits[{i}].source", c.source, c.queue_direction))
+                stations.append((f"circuits[{i}].sink", c.sink, c.queue_direction))
+        object.__setattr__(self, "_stations", tuple(stations))
+        docks = np.array([dock for _, dock, _ in stations], dtype=float).reshape(-1, 2)
+        object.__setattr__(self, "_docks", docks)
         self._validate()
 
     @property
@@ -289,16 +299,19 @@ class ArenaConfig:
         # Two docks closer than two robot diameters would make one robot's service block the other
         # station, so the circuits would not be separate task classes.
         min_gap = 4 * self.robot_radius
-        for a in range(len(stations)):
-            for b in range(a + 1, len(stations)):
-                (na, pa), (nb, pb) = stations[a], stations[b]
-                gap = math.dist(pa, pb)
-                require(
-                    gap >= min_gap,
-                    f"{nb} (distance to {na})",
-                    round(gap, 3),
-                    f"stations at least {min_gap} m apart (overlapping circuits)",
-                )
+        # only pairs near the limit need the exact test (numpy's distances differ from math.dist
+        # in the last bit at most); they are tested in the order of the loop over all pairs
+        docks = np.array([p for _, p in stations], dtype=float).reshape(-1, 2)
+        near = np.hypot(*(docks[:, None, :] - docks[None, :, :]).transpose(2, 0, 1))
+        for a, b in zip(*np.nonzero(np.triu(near < min_gap * (1 + 1e-6) + 1e-9, 1))):
+            (na, pa), (nb, pb) = stations[int(a)], stations[int(b)]
+            gap = math.dist(pa, pb)
+            require(
+                gap >= min_gap,
+                f"{nb} (distance to {na})",
+                round(gap, 3),
+                f"stations at least {min_gap} m apart (overlapping circuits)",
+            )
         for i, event in enumerate(self.breakdowns):
             require(isinstance(event, Breakdown), f"breakdowns[{i}]", event, "a tavc_env.Breakdown")
             require(
@@ -307,13 +320,11 @@ class ArenaConfig:
                 event.robot,
                 f"a robot index in [0, {self.n_robots - 1}]",
             )
-        free_area = self.width * self.height
-        footprint = self.n_robots * (2 * self.robot_radius + 0.1) ** 2
         require(
-            footprint <= 0.25 * free_area,
+            _robots_fit(self.n_robots, self.robot_radius, self.width, self.height),
             "robots",
             f"{self.n_robots} robots",
-            f"at most {int(0.25 * free_area / (2 * self.robot_radius + 0.1) ** 2)} robots of radius "
+            f"at most {_most_robots(self.robot_radius, self.width, self.height)} robots of radius "
             f"{self.robot_radius} m in a {self.width} x {self.height} m arena (robots cannot fit)",
         )
 
@@ -379,11 +390,11 @@ class ArenaConfig:
 
     def stations(self) -> list[tuple[str, Point, Point]]:
         """(name, dock, queue direction) of every station: source then sink of each circuit."""
-        out = []
-        for i, c in enumerate(self.circuits):
-            out.append((f"circuits[{i}].source", c.source, c.queue_direction))
-            out.append((f"circuits[{i}].sink", c.sink, c.queue_direction))
-        return out
+        return list(self._station_list())
+
+    def _station_list(self) -> tuple[tuple[str, Point, Point], ...]:
+        listed: tuple[tuple[str, Point, Point], ...] = self.__dict__["_stations"]  # not a field
+        return listed
 
     def docks(self) -> list[Point]:
         return [dock for _, dock, _ in self.stations()]
@@ -405,8 +416,8 @@ class ArenaConfig:
         return rows[0] if rows else np.zeros((0, 2))
 
     def _rows(self, station: int, offset: float, count: int) -> list[np.ndarray]:
-        _, dock, direction = self.stations()[station]
-        others = [d for k, d in enumerate(self.docks()) if k != station]
+        _, dock, direction = self._station_list()[station]
+        others = np.delete(self.__dict__["_docks"], station, axis=0)
         return waiting_rows(
             dock,
             direction,
@@ -427,6 +438,15 @@ class ArenaConfig:
     def replace(self, **changes: Any) -> ArenaConfig:
         """A copy with fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+
+def _robots_fit(n: int, radius: float, width: float, height: float) -> bool:
+    """Robots' footprints (with a margin) cover at most a quarter of the floor."""
+    return n * (2 * radius + 0.1) ** 2 <= 0.25 * (width * height)
+
+
+def _most_robots(radius: float, width: float, height: float) -> int:
+    return int(0.25 * (width * height) / (2 * radius + 0.1) ** 2)
 
 
 def lane_circuits(
@@ -669,23 +689,41 @@ def scaled_config(
         "a spacing >= 3 m",
     )
     n = n_circuits * robots_per_circuit
+    require(
+        n <= MAX_SCALED_ROBOTS,
+        "n_circuits * robots_per_circuit",
+        n,
+        f"at most {MAX_SCALED_ROBOTS} robots (larger arenas take too long to lay out)",
+    )
     robots = robots_from_speeds([speeds[i % len(speeds)] for i in range(n)])
+    fastest = (max(robots, key=lambda r: r.speed),)
     values = [2200.0 - 10.0 * i for i in range(n_circuits)]
-    last_error: ValueError | None = None
+    # Each candidate arena is first built with the fastest robot alone: every check that does
+    # not depend on the team's size, and the geometry of the waiting lines, which is checked
+    # station by station, stopping at the first that is too short. Only an arena whose lines
+    # hold the team is built with the whole team (validated in full). The arena chosen is the
+    # one the full validation of every candidate in turn would choose.
+    probe: ArenaConfig | None = None
     for spacing in (lane_spacing_m * f for f in (1.0, 1.5, 2.0, 3.0, 4.0)):
         width = 3.0 + spacing * max(n_circuits - 1, 1)
         for height in range(8, 82, 2):
-            try:
-                return ArenaConfig(
-                    width=width,
-                    height=float(height),
-                    circuits=lane_circuits(
-                        n_circuits, width=width, height=float(height), values=values
-                    ),
-                    robots=robots,
-                )
-            except ValueError as error:  # only a waiting line too short is worth a bigger arena
-                if "waiting line" not in str(error):
-                    raise
-                last_error = error
-    raise ValueError(f"no arena with lanes up to 4 x {lane_spacing_m} m apart fits: {last_error}")
+            fields: dict[str, Any] = {
+                "width": width,
+                "height": float(height),
+                "circuits": lane_circuits(
+                    n_circuits, width=width, height=float(height), values=values
+                ),
+            }
+            probe = ArenaConfig(**fields, robots=fastest)
+            if not _robots_fit(n, probe.robot_radius, width, float(height)) or all(
+                len(probe.waiting_slots(k, n - 1)) >= n - 1 for k in range(len(probe.stations()))
+            ):
+                return ArenaConfig(**fields, robots=robots)
+    assert probe is not None
+    held = min(len(probe.waiting_slots(k, n - 1)) for k in range(len(probe.stations())))
+    raise ValueError(
+        f"n_circuits, robots_per_circuit = {n_circuits}, {robots_per_circuit} is invalid; "
+        f"allowed: at most {(held + 1) // n_circuits} robots per circuit with {n_circuits} "
+        f"circuits: no arena up to {probe.width:g} x {probe.height:g} m (lanes up to 4 x "
+        f"{lane_spacing_m:g} m apart) has waiting lines for {n} robots (at most {held + 1})"
+    )

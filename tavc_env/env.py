@@ -628,9 +628,7 @@ class _History:
 # engine knows nothing of it; an arena forgotten by everyone else leaves it).
 _HISTORIES: weakref.WeakKeyDictionary[Engine, _History] = weakref.WeakKeyDictionary()
 # Attributes of a Simulation that are not its state: code, caches of other attributes, links.
-_NOT_STATE = frozenset(
-    {"config", "world", "_rng", "_observers", "_steer", "_steer_args", "_steer_extra", "_bound"}
-)
+_NOT_STATE = frozenset({"config", "world", "_rng", "_observers", "_tick_args", "_bound"})
 
 
 def _arena_digest(sim: Simulation) -> str:

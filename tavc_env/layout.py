@@ -6,6 +6,7 @@ station find a place?) and the task cycle (which slot does each waiting robot dr
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -47,34 +48,44 @@ def waiting_rows(
     if np.dot(np.array([width / 2, height / 2]) - base, across) < 0:
         across = -across
     others = np.asarray(other_docks, dtype=float).reshape(-1, 2)
+    # A row leaves the arena within this many slots (checked below, all at once per row).
+    reach = max(float(np.hypot(*along)) * spacing, 1e-12)
+    longest = int(math.hypot(width, height) / reach) + 2
 
-    def fits(p: np.ndarray) -> bool:
-        if np.any(p < lo) or np.any(p > hi):
-            return False
-        if others.size == 0:
-            return True
-        own = float(np.hypot(*(p - base)))
-        return bool(np.all(np.hypot(*(others - p).T) >= own + spacing))
+    def fitting(row: int, cap: int) -> int:
+        """How many slots of `row` fit, from its start (at most `cap`): the same points and tests
+        as one slot at a time, in growing blocks of slots (rows are mostly short)."""
+        shift = across * row * ROW_PITCH * spacing
+        start, block = 0, 16
+        while start < cap:
+            k = np.arange(start, min(start + block, cap))
+            p = base + along * (offset + k * spacing)[:, None] + shift
+            ok = np.all(p >= lo, axis=1) & np.all(p <= hi, axis=1)
+            if others.size:
+                own = np.hypot(p[:, 0] - base[0], p[:, 1] - base[1])
+                gaps = np.hypot(
+                    others[None, :, 0] - p[:, None, 0], others[None, :, 1] - p[:, None, 1]
+                )
+                ok &= np.all(gaps >= (own + spacing)[:, None], axis=1)
+            if not ok.all():
+                return start + int(np.argmin(ok))
+            start, block = start + len(k), 2 * block
+        return cap
 
     rows: list[np.ndarray] = []
     left = count
     for row in range(MAX_ROWS):
         if left <= 0:
             break
-        line: list[np.ndarray] = []
-        while True:
-            p = base + along * (offset + len(line) * spacing) + across * row * ROW_PITCH * spacing
-            if not fits(p):
-                break
-            line.append(p)
-            # the first row is cut at `count`; a snaking row needs its whole length to know
-            # where it starts
-            if row == 0 and len(line) >= left:
-                break
-        if not line:
+        # the first row is cut at `count`; a snaking row needs its whole length to know where it
+        # starts
+        fit = fitting(row, left if row == 0 else longest)
+        if fit == 0:
             break
+        k = np.arange(fit)
+        line = base + along * (offset + k * spacing)[:, None] + across * row * ROW_PITCH * spacing
         if row % 2 == 1:
-            line.reverse()
+            line = line[::-1]
         rows.append(np.array(line[:left], dtype=float).reshape(-1, 2))
         left -= len(rows[-1])
     return rows

@@ -27,57 +27,53 @@ alongside; and a robot dead ahead is passed on the side with room (the right unl
 leaves less room there than on the left). The robot then returns to its line by the pull of its
 target. Every robot is treated alike; only its top speed differs.
 
-The per-tick loop over robot pairs is one function, compiled by numba when it is installed (the
-physics loop calls it every 0.1 s of simulated time, so interpreted Python would dominate the run
-time); without numba the same function runs as plain Python.
+The per-tick loop over robot pairs is one function, compiled by numba (the physics loop calls it
+every 0.1 s of simulated time, so interpreted Python would dominate the run time); the compiled
+tick at the end of this file (`run_ticks`) calls it with the physics step.
 """
 
 from __future__ import annotations
 
 import math
+import os as _os
+import warnings as _warnings
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
+from llvmlite import ir
+from numba import njit as _njit
+from numba import types
+from numba.core import config as _numba_config
+from numba.extending import intrinsic
 
 from tavc_env.config import ArenaConfig
 
-try:
-    import os as _os
-    import warnings as _warnings
+_cache_warned: list[str] = []
 
-    from numba import njit as _njit
-    from numba.core import config as _numba_config
 
-    _cache_warned: list[str] = []
-
-    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
-        """numba's compiled `fn`, cached on disk; where no cache folder can be written (a
-        read-only install run by another user), compiled at every start, with one warning."""
-        try:
-            return _njit(cache=True, fastmath=False, nogil=True)(fn)
-        except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
-            if "no locator" not in str(error):
-                raise
-        if not _cache_warned:
-            folders = [_os.path.join(_os.path.dirname(fn.__code__.co_filename), "__pycache__")]
-            user_folder = getattr(_numba_config, "CACHE_DIR", "")  # NUMBA_CACHE_DIR
-            if user_folder:
-                folders.insert(0, user_folder)
-            _cache_warned.append(folders[0])
-            _warnings.warn(
-                f"numba cannot write its cache (tried {' and '.join(folders)} and the user's "
-                "cache folder): the robots' controller is compiled anew at every start (a few "
-                "seconds); set NUMBA_CACHE_DIR to a writable folder to cache it",
-                RuntimeWarning,
-                stacklevel=2,
-            )
-        return _njit(cache=False, fastmath=False, nogil=True)(fn)
-
-except ImportError:  # pragma: no cover - numba is a dependency; this keeps a broken install usable
-
-    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
-        return fn
+def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """numba's compiled `fn`, cached on disk; where no cache folder can be written (a
+    read-only install run by another user), compiled at every start, with one warning."""
+    try:
+        return _njit(cache=True, fastmath=False, nogil=True)(fn)
+    except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
+        if "no locator" not in str(error):
+            raise
+    if not _cache_warned:
+        folders = [_os.path.join(_os.path.dirname(fn.__code__.co_filename), "__pycache__")]
+        user_folder = getattr(_numba_config, "CACHE_DIR", "")  # NUMBA_CACHE_DIR
+        if user_folder:
+            folders.insert(0, user_folder)
+        _cache_warned.append(folders[0])
+        _warnings.warn(
+            f"numba cannot write its cache (tried {' and '.join(folders)} and the user's "
+            "cache folder): the robots' controller is compiled anew at every start (a few "
+            "seconds); set NUMBA_CACHE_DIR to a writable folder to cache it",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return _njit(cache=False, fastmath=False, nogil=True)(fn)
 
 
 STEER_GAIN = 1.5  # sideways deflection per unit of obstacle weight
@@ -97,32 +93,24 @@ ESCAPE_DISTANCE_M = 1.0
 ESCAPE_TIME_S = 4.0
 
 
-class SteerArgs(NamedTuple):
-    """The arguments of `steer_all` (and, followed by the grid cell, of `steer_all_grid`), in
-    order: the robots' state, the controller's constants and the output buffers."""
-
-    pos: np.ndarray  # (n, 2) centres
-    heading: np.ndarray  # (n,) headings, read and updated in place
-    target: np.ndarray  # (n, 2) where each robot drives
-    moving: np.ndarray  # (n,) bool: drives (False: holds still)
-    top_speed: np.ndarray  # (n,) this leg's top speed
-    present: np.ndarray  # (n,) bool: on the floor (False: broken)
-    radius: float
-    sensing: float
-    governor: float  # clearance (m) below which speed is governed; 0: no governor
-    overtaking: bool  # governor sees only the robot's own path; dead-ahead robots passed on the roomier side
-    turn_step: float  # largest heading change per tick
-    width: float
-    height: float
-    out_velocity: np.ndarray  # (n, 2) commands written here
-    out_heading: np.ndarray  # (n,) new headings written here
-
-
 def _clip(x: float, lo: float, hi: float) -> float:
     return lo if x < lo else hi if x > hi else x
 
 
-_clip_c = _compile(_clip)
+_clip_c = compiled(_clip)
+
+
+def _wrap(x: float) -> float:
+    """`(x + pi) % (2 pi) - pi`, bit for bit: where `x + pi` already lies in [0, 2 pi) the modulo
+    returns it unchanged, so it is skipped (a float modulo is a library call, the most common
+    one in the controller)."""
+    t = x + math.pi
+    if 0.0 <= t < 2.0 * math.pi:
+        return t - math.pi
+    return t % (2.0 * math.pi) - math.pi
+
+
+_wrap_c = compiled(_wrap)
 
 
 def _wall_room(x: float, y: float, nx: float, ny: float, width: float, height: float) -> float:
@@ -139,7 +127,7 @@ def _wall_room(x: float, y: float, nx: float, ny: float, width: float, height: f
     return room
 
 
-_wall_room_c = _compile(_wall_room)
+_wall_room_c = compiled(_wall_room)
 
 
 def _steer_one(
@@ -222,9 +210,9 @@ def _steer_one(
     want_y -= _clip_c((py - (height - wall_lo)) / WALL_RANGE_M, 0.0, 1.0)
 
     phi = math.atan2(want_y, want_x)
-    err = (phi - heading[i] + math.pi) % (2.0 * math.pi) - math.pi
+    err = _wrap_c(phi - heading[i])
     turn = _clip_c(err, -turn_step, turn_step)
-    h = (heading[i] + turn + math.pi) % (2.0 * math.pi) - math.pi
+    h = _wrap_c(heading[i] + turn)
     c = max(math.cos(err - turn), 0.0)
     speed = min(top_speed[i] * c * c, gdist / APPROACH_TIME_S)
 
@@ -252,7 +240,7 @@ def _steer_one(
     out_velocity[i, 1] = speed * hy
 
 
-_steer_one_c = _compile(_steer_one)
+_steer_one_c = compiled(_steer_one)
 
 
 def _steer_all(
@@ -319,7 +307,7 @@ def _first_at_least(keys: np.ndarray, value: int) -> int:
     return lo
 
 
-_first_at_least_c = _compile(_first_at_least)
+_first_at_least_c = compiled(_first_at_least)
 
 
 def _steer_all_grid(
@@ -374,13 +362,19 @@ def _steer_all_grid(
         m = 0
         x0 = max(cx[i] - 1, 0)
         x1 = min(cx[i] + 1, nx - 1)
-        for yy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
-            # cells x0..x1 of row yy are the consecutive cell numbers row + x0 .. row + x1
-            lo = _first_at_least_c(keys, yy * nx + x0)
-            hi = _first_at_least_c(keys, yy * nx + x1 + 1)
-            for k in range(lo, hi):
+        y0 = max(cy[i] - 1, 0)
+        y1 = min(cy[i] + 2, ny)
+        if not (moving[i] and present[i]):
+            y1 = y0  # it holds still and looks at nobody (`_steer_one` stops before them)
+        for yy in range(y0, y1):
+            # cells x0..x1 of row yy are the consecutive cell numbers row + x0 .. row + x1: one
+            # search for the first, then the sorted keys in order up to the last
+            k = _first_at_least_c(keys, yy * nx + x0)
+            end = yy * nx + x1 + 1
+            while k < n_present and keys[k] < end:
                 others[m] = items[k]
                 m += 1
+                k += 1
         # the cells are visited row by row: merge them into increasing index order
         for a in range(1, m):
             v = others[a]
@@ -411,9 +405,9 @@ def _steer_all_grid(
         )
 
 
-steer_all_grid = _compile(_steer_all_grid)
+steer_all_grid = compiled(_steer_all_grid)
 GRID_MIN_ROBOTS = 16  # from this team size on the grid is faster than all pairs
-steer_all = _compile(_steer_all)
+steer_all = compiled(_steer_all)
 
 
 def _arrivals(pos: np.ndarray, target: np.ndarray, trigger: np.ndarray, out: np.ndarray) -> int:
@@ -430,7 +424,7 @@ def _arrivals(pos: np.ndarray, target: np.ndarray, trigger: np.ndarray, out: np.
     return k
 
 
-arrivals = _compile(_arrivals)
+arrivals = compiled(_arrivals)
 
 
 def _stuck(
@@ -464,7 +458,7 @@ def _stuck(
     return k
 
 
-stuck = _compile(_stuck)
+stuck = compiled(_stuck)
 
 
 def _after_step(
@@ -493,7 +487,7 @@ def _after_step(
 
 _arrivals_c = arrivals
 _stuck_c = stuck
-after_step = _compile(_after_step)
+after_step = compiled(_after_step)
 
 
 class Navigator:
@@ -507,3 +501,210 @@ class Navigator:
         self.turn_step = config.max_turn_rate * config.dt
         self.width = config.width
         self.height = config.height
+
+
+# -- the compiled tick ---------------------------------------------------------------------------
+# Steer, push velocities, step Chipmunk, read positions, and check arrivals and stuck robots, tick
+# after tick, without returning to Python while nothing happens. Each tick makes the calls a tick
+# driven from Python made, in the same order and on the same arrays (the controller above,
+# pymunk's batch iterators and `cpSpaceStep` through the addresses in `World.c_calls`), so
+# trajectories are bit for bit the same. The loop hands back to `Simulation` the first tick whose
+# end needs the task rules (a service or schedule entry due, an arrival, a stuck robot, a jam
+# check); Python finishes that tick. It lives in this file with every compiled function it calls:
+# numba's on-disk cache of a function is renewed when its own file changes, not when a function
+# it calls in another file does.
+# Addresses travel as int64 (numba's type of a Python int) and become pointers only in the call.
+_VOID_P = ir.IntType(8).as_pointer()
+
+
+def _space_step(typingctx: object, fn: types.Type, space: types.Type, dt: types.Type) -> object:
+    """`cpSpaceStep(space, dt)` through its address `fn`."""
+
+    def codegen(
+        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
+    ) -> object:
+        kind = ir.FunctionType(ir.VoidType(), [_VOID_P, ir.DoubleType()])
+        call = builder.inttoptr(args[0], kind.as_pointer())
+        builder.call(call, [builder.inttoptr(args[1], _VOID_P), args[2]])
+        return context.get_dummy_value()  # type: ignore[attr-defined]
+
+    return types.void(types.int64, types.int64, types.float64), codegen
+
+
+def _each_body(
+    typingctx: object, fn: types.Type, space: types.Type, visit: types.Type, data: types.Type
+) -> object:
+    """`cpSpaceEachBody(space, visit, data)` through its address `fn`."""
+
+    def codegen(
+        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
+    ) -> object:
+        kind = ir.FunctionType(ir.VoidType(), [_VOID_P, _VOID_P, _VOID_P])
+        call = builder.inttoptr(args[0], kind.as_pointer())
+        builder.call(call, [builder.inttoptr(a, _VOID_P) for a in args[1:]])
+        return context.get_dummy_value()  # type: ignore[attr-defined]
+
+    return types.void(types.int64, types.int64, types.int64, types.int64), codegen
+
+
+def _set_count(typingctx: object, array: types.Type, count: types.Type) -> object:
+    """Set the `num` (an int, first field) of the pymunk float array at address `array`; return
+    the old one. pymunk's batch iterators read and write from index `num` on, advancing it."""
+
+    def codegen(
+        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
+    ) -> object:
+        at = builder.inttoptr(args[0], ir.IntType(32).as_pointer())
+        old = builder.load(at)
+        builder.store(builder.trunc(args[1], ir.IntType(32)), at)
+        return builder.sext(old, ir.IntType(64))
+
+    return types.int64(types.int64, types.int64), codegen
+
+
+# numba's intrinsic wrappers (callable from compiled code only)
+space_step: Any = intrinsic(_space_step)
+each_body: Any = intrinsic(_each_body)
+set_count: Any = intrinsic(_set_count)
+
+# indices into `World.c_calls` (tavc_env.engine.world fills it)
+C_STEP, C_EACH_BODY, C_SPACE, C_SET_VISIT, C_SET_DATA, C_SET_FLOATS = 0, 1, 2, 3, 4, 5
+C_GET_VISIT, C_GET_DATA, C_GET_FLOATS = 6, 7, 8
+
+
+QUIET = 0  # every tick ran to its end: nothing for the task rules
+DUE = 1  # the last tick's physics ran; a service or schedule entry is due: Python checks it all
+CHECKED = 2  # the last tick's physics and after-step check ran; its results need the task rules
+
+
+class TickArgs(NamedTuple):
+    """The loop's arrays and constants, bound once (rebuilt when the world's slots change, the
+    task cycle is replaced, or robots' headings or speeds arrays are)."""
+
+    c_calls: np.ndarray  # World.c_calls
+    pos: np.ndarray  # (n, 2) World.pos, written after each step
+    heading: np.ndarray
+    target: np.ndarray
+    moving: np.ndarray
+    top_speed: np.ndarray
+    present: np.ndarray
+    radius: float
+    sensing: float
+    governor: float
+    overtaking: bool
+    turn_step: float
+    width: float
+    height: float
+    velocity: np.ndarray  # (n, 2) World.velocity_out, the commands
+    cell: float  # the neighbour grid's cell; 0: all pairs
+    # the world's scatter, when its batch order is not the robots' (after a breakdown)
+    in_order: bool
+    robots_in: np.ndarray
+    slots: np.ndarray
+    positions_in: np.ndarray
+    velocities_in: np.ndarray
+    # escapes, the after-step checks
+    escape_until: np.ndarray
+    escape_target: np.ndarray
+    aim: np.ndarray  # (n, 2) scratch: the targets steered at while someone escapes
+    trigger: np.ndarray
+    anchor: np.ndarray
+    anchor_time: np.ndarray
+    patience_s: float
+    arrived: np.ndarray
+    stalled: np.ndarray
+
+
+def _run_ticks(
+    max_ticks: int,
+    ticks: int,
+    dt: float,
+    escapes_end: float,
+    next_service: float,
+    next_schedule: float,
+    progress_s: float,
+    jam_window_s: float,
+    c_calls: np.ndarray,
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    governor: float,
+    overtaking: bool,
+    turn_step: float,
+    width: float,
+    height: float,
+    velocity: np.ndarray,
+    cell: float,
+    in_order: bool,
+    robots_in: np.ndarray,
+    slots: np.ndarray,
+    positions_in: np.ndarray,
+    velocities_in: np.ndarray,
+    escape_until: np.ndarray,
+    escape_target: np.ndarray,
+    aim: np.ndarray,
+    trigger: np.ndarray,
+    anchor: np.ndarray,
+    anchor_time: np.ndarray,
+    patience_s: float,
+    arrived: np.ndarray,
+    stalled: np.ndarray,
+) -> tuple[int, int, int, int]:
+    """Up to `max_ticks` ticks from tick number `ticks`. Returns (ticks run, QUIET / DUE /
+    CHECKED, arrived count, stalled count) with the counts of `after_step` if CHECKED."""
+    space = c_calls[C_SPACE]
+    each = c_calls[C_EACH_BODY]
+    for k in range(max_ticks):
+        steer_at = target
+        if escapes_end > ticks * dt:  # Simulation.time_s before this tick
+            now_before = ticks * dt
+            for i in range(target.shape[0]):
+                src = escape_target if escape_until[i] > now_before else target
+                aim[i, 0] = src[i, 0]
+                aim[i, 1] = src[i, 1]
+            steer_at = aim
+        if cell > 0.0:
+            steer_all_grid(
+                pos, heading, steer_at, moving, top_speed, present, radius, sensing, governor,
+                overtaking, turn_step, width, height, velocity, heading, cell,
+            )  # fmt: skip
+        else:
+            steer_all(
+                pos, heading, steer_at, moving, top_speed, present, radius, sensing, governor,
+                overtaking, turn_step, width, height, velocity, heading,
+            )  # fmt: skip
+        # World.push_velocities, World.step, World.sync_positions
+        if not in_order:
+            for j in range(robots_in.shape[0]):
+                velocities_in[slots[j], 0] = velocity[robots_in[j], 0]
+                velocities_in[slots[j], 1] = velocity[robots_in[j], 1]
+        count = set_count(c_calls[C_SET_FLOATS], 0)
+        each_body(each, space, c_calls[C_SET_VISIT], c_calls[C_SET_DATA])
+        set_count(c_calls[C_SET_FLOATS], count)
+        space_step(c_calls[C_STEP], space, dt)
+        set_count(c_calls[C_GET_FLOATS], 0)
+        each_body(each, space, c_calls[C_GET_VISIT], c_calls[C_GET_DATA])
+        if not in_order:
+            for j in range(robots_in.shape[0]):
+                pos[robots_in[j], 0] = positions_in[slots[j], 0]
+                pos[robots_in[j], 1] = positions_in[slots[j], 1]
+        ticks += 1
+        now = ticks * dt
+        # the first checks of Simulation._post_step, in its order
+        if next_service <= now + 1e-9 or next_schedule <= now + 1e-9:
+            return k + 1, DUE, 0, 0
+        n_arrived, n_stalled = after_step(
+            pos, target, trigger, moving, present, anchor, anchor_time, now, patience_s, True,
+            arrived, stalled,
+        )  # fmt: skip
+        if n_arrived != 0 or n_stalled != 0 or now - progress_s >= jam_window_s:
+            return k + 1, CHECKED, n_arrived, n_stalled
+    return max_ticks, QUIET, 0, 0
+
+
+run_ticks = compiled(_run_ticks)

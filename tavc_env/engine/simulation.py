@@ -23,16 +23,17 @@ from tavc_env.engine.base import (
     without_repairs,
 )
 from tavc_env.engine.navigation import (
+    CHECKED,
     ESCAPE_DISTANCE_M,
     ESCAPE_TIME_S,
     GRID_MIN_ROBOTS,
+    QUIET,
     STUCK_PATIENCE_S,
     Navigator,
-    SteerArgs,
+    TickArgs,
     after_step,
     neighbour_cell_m,
-    steer_all,
-    steer_all_grid,
+    run_ticks,
     stuck,
 )
 from tavc_env.engine.tasks import Phase, TaskCycle
@@ -110,10 +111,8 @@ class Simulation:
         self._hits = np.zeros(n, dtype=np.int64)
         self._stalled = np.zeros(n, dtype=np.int64)
         self._dt = config.dt
-        self._steer = steer_all
-        self._steer_args: SteerArgs | None = None
-        self._steer_extra: tuple[float, ...] = ()  # the grid cell, for steer_all_grid
-        self._bound: tuple[object, ...] = (None,) * 4
+        self._tick_args: TickArgs | None = None
+        self._bound: tuple[object, ...] = (None,) * 6
         self._next_service = math.inf  # earliest end of a loading / unloading
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
@@ -234,21 +233,25 @@ class Simulation:
         self._check_reset()
         out = Advance()
         start = self.time_s
-        dt = self.config.dt
-        n_ticks = max(1, round(max_duration_s / dt))
-        for _ in range(n_ticks):
-            self._tick(out)
+        n_ticks = max(1, round(max_duration_s / self.config.dt))
+        done = 0
+        while done < n_ticks:
+            # Observers see every tick; otherwise the compiled loop runs the quiet ticks at once
+            # (they end in no event, so no decision epoch can fall among them).
+            done += self._ticks(out, 1 if self._observers else n_ticks - done)
             if stop_on_decision and (out.completions or out.repaired):
                 break
         out.duration_s = self.time_s - start
         return out
 
     def _bind(self) -> None:
-        """Fix the steering call's arguments: the same arrays every tick (updated in place),
+        """Fix the compiled tick's arguments: the same arrays every tick (updated in place),
         rebuilt after a reset or when robots leave or re-enter the floor."""
         world, nav, tasks = self.world, self.nav, self.tasks
         self._pos = world.pos
-        self._steer_args = SteerArgs(
+        scatter = world.scatter()
+        self._tick_args = TickArgs(
+            c_calls=world.c_calls,
             pos=world.pos,
             heading=self.heading,  # read and written in place: each robot reads only its own
             target=tasks.target,
@@ -262,42 +265,68 @@ class Simulation:
             turn_step=nav.turn_step,
             width=nav.width,
             height=nav.height,
-            out_velocity=world.velocity_out,
-            out_heading=self.heading,
+            velocity=world.velocity_out,
+            cell=self._grid_cell,
+            in_order=scatter.in_order,
+            robots_in=scatter.robots_in,
+            slots=scatter.slots,
+            positions_in=scatter.positions_in,
+            velocities_in=scatter.velocities_in,
+            escape_until=self._escape_until,
+            escape_target=self._escape_target,
+            aim=np.zeros_like(self._escape_target),
+            trigger=tasks.trigger,
+            anchor=self._anchor,
+            anchor_time=self._anchor_time,
+            patience_s=STUCK_PATIENCE_S,
+            arrived=self._hits,
+            stalled=self._stalled,
         )
-        if self._grid_cell > 0:
-            self._steer, self._steer_extra = steer_all_grid, (self._grid_cell,)
-        else:
-            self._steer, self._steer_extra = steer_all, ()
-        self._bound = (world.version, tasks, self.heading, self.top_speed)
+        # the world itself too: a new World starts counting versions anew, and the compiled
+        # tick must never call into the C space of one that is gone
+        self._bound = (world, world.version, tasks, self.heading, self.top_speed, self._anchor)
 
-    def _tick(self, out: Advance) -> None:
+    def _ticks(self, out: Advance, max_ticks: int) -> int:
+        """Run up to `max_ticks` ticks, stopping after the first that ends in a task event (see
+        `tavc_env.engine.navigation.run_ticks`); returns how many ran."""
         if self._observers:
             marks = (len(out.completions), len(out.broken), len(out.repaired), self.escapes)
         world, tasks = self.world, self.tasks
         bound = self._bound
         if (
-            bound[0] != world.version
-            or bound[1] is not tasks
-            or bound[2] is not self.heading
-            or bound[3] is not self.top_speed
+            bound[0] is not world
+            or bound[1] != world.version
+            or bound[2] is not tasks
+            or bound[3] is not self.heading
+            or bound[4] is not self.top_speed
+            or bound[5] is not self._anchor
         ):
             self._bind()
-        args = self._steer_args
-        assert args is not None
-        if self._escapes_end > self.time_s:
-            escaping = (self._escape_until > self.time_s)[:, None]
-            args = args._replace(target=np.where(escaping, self._escape_target, tasks.target))
-        self._steer(*args, *self._steer_extra)
-        world.push_velocities()
-        world.step(self._dt)
-        world.sync_positions()
-        self.ticks += 1
+        assert self._tick_args is not None
+        ran, status, n_arrived, n_stalled = run_ticks(
+            max_ticks,
+            self.ticks,
+            self._dt,
+            self._escapes_end,
+            self._next_service,
+            float(self._schedule[0].at_s) if self._schedule else math.inf,
+            self._progress_s,
+            self.jam_window_s,
+            *self._tick_args,
+        )
+        self.ticks += ran
         self.time_s = self.ticks * self._dt
-        now = self.time_s
+        if status != QUIET:
+            self._end_tick(out, (n_arrived, n_stalled) if status == CHECKED else None)
+        if self._observers:
+            self._notify(out, marks)
+        return int(ran)
 
-        # Most ticks nothing happens: one compiled call checks arrivals and stuck robots. When
-        # something does, the checks run in the order events change the task state.
+    def _end_tick(self, out: Advance, checked: tuple[int, int] | None) -> None:
+        """The task rules at the end of a tick that needs them; `checked`: the counts of the
+        after-step check if the compiled loop already ran it (no service or schedule entry due)."""
+        tasks = self.tasks
+        now = self.time_s
         services_due = self._next_service <= now + 1e-9
         schedule_due = bool(self._schedule) and self._schedule[0].at_s <= now + 1e-9
         if services_due:
@@ -307,20 +336,22 @@ class Simulation:
                     self._new_leg(int(i))
                 else:
                     out.completions.append(completion)
-        n_arrived, n_stalled = after_step(
-            self._pos,
-            tasks.target,
-            tasks.trigger,
-            tasks.moving,
-            self.world.in_space,
-            self._anchor,
-            self._anchor_time,
-            now,
-            STUCK_PATIENCE_S,
-            not schedule_due,
-            self._hits,
-            self._stalled,
-        )
+        if checked is None:
+            checked = after_step(
+                self._pos,
+                tasks.target,
+                tasks.trigger,
+                tasks.moving,
+                self.world.in_space,
+                self._anchor,
+                self._anchor_time,
+                now,
+                STUCK_PATIENCE_S,
+                not schedule_due,
+                self._hits,
+                self._stalled,
+            )
+        n_arrived, n_stalled = checked
         for k in range(n_arrived):
             tasks.arrive(int(self._hits[k]), now)
         if schedule_due:
@@ -344,8 +375,6 @@ class Simulation:
             self._progress(now)
         elif now - self._progress_s >= self.jam_window_s:
             self._check_jam(now)
-        if self._observers:
-            self._notify(out, marks)
 
     def _notify(self, out: Advance, marks: tuple[int, int, int, int]) -> None:
         now = self.time_s

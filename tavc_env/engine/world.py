@@ -7,11 +7,16 @@ contacts, so robots that drive into each other are stopped and pushed apart phys
 Positions are read and velocities written every tick for all robots at once through pymunk's batch
 API (one C call each instead of a Python attribute access per body, which dominated the tick). The
 batch visits bodies in the space's own order, so the world keeps the slot of each robot in it.
+
+The engine's compiled tick (`tavc_env.engine.navigation.run_ticks`) makes the same C calls
+(Chipmunk's step and pymunk's batch iterators) from compiled code, through the addresses in
+`World.c_calls`, without a trip through Python per tick.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import pymunk
@@ -20,6 +25,17 @@ from pymunk._chipmunk_cffi import ffi as _ffi
 from pymunk._chipmunk_cffi import lib as _lib
 
 from tavc_env.config import ArenaConfig
+from tavc_env.engine.navigation import (
+    C_EACH_BODY,
+    C_GET_DATA,
+    C_GET_FLOATS,
+    C_GET_VISIT,
+    C_SET_DATA,
+    C_SET_FLOATS,
+    C_SET_VISIT,
+    C_SPACE,
+    C_STEP,
+)
 
 # pymunk's own C iterators behind pymunk.batch (pymunk 7; pinned < 8 in pyproject.toml)
 _GET_BODIES = _ffi.addressof(_lib, "pmSpaceBodyGetIteratorFuncBatched")
@@ -28,6 +44,21 @@ ROBOT_MASS_KG = 9.0  # a Pioneer 2DX weighs about 9 kg
 WALL_THICKNESS_M = 0.05
 ROBOT_CATEGORY = 0b01
 WALL_CATEGORY = 0b10
+
+
+def _address(cdata: object) -> int:
+    return int(_ffi.cast("uintptr_t", cdata))
+
+
+class Scatter(NamedTuple):
+    """Robots and their batch slots: robot `robots_in[k]` is row `slots[k]` of the batch buffers
+    (`in_order`: robot i is row i, no scatter needed)."""
+
+    in_order: bool
+    robots_in: np.ndarray
+    slots: np.ndarray
+    positions_in: np.ndarray
+    velocities_in: np.ndarray
 
 
 class World:
@@ -89,6 +120,19 @@ class World:
         self._set_args.fields = pymunk.batch.BodyFields.VELOCITY.value
         self._set_args.intArray = self._set._int_arr
         self._space_ptr = self.space._space
+        # what the compiled tick needs to make the same calls, at the indices it reads them
+        calls = {
+            C_STEP: _ffi.addressof(_lib, "cpSpaceStep"),
+            C_EACH_BODY: _ffi.addressof(_lib, "cpSpaceEachBody"),
+            C_SPACE: self._space_ptr,
+            C_SET_VISIT: _SET_BODIES,
+            C_SET_DATA: self._set_args,
+            C_SET_FLOATS: self._set._float_arr,
+            C_GET_VISIT: _GET_BODIES,
+            C_GET_DATA: self._get_args,
+            C_GET_FLOATS: self._get._float_arr,
+        }
+        self.c_calls = np.array([_address(calls[k]) for k in sorted(calls)], dtype=np.int64)
 
     def __getstate__(self) -> dict[str, object]:
         # Not `copy` nor `pickle`: pymunk's copy of a space keeps positions, velocities and cached
@@ -150,6 +194,13 @@ class World:
     @property
     def n(self) -> int:
         return len(self.bodies)
+
+    def scatter(self) -> Scatter:
+        """How `push_velocities` and `sync_positions` map robots to batch slots, for the compiled
+        tick (valid until `version` changes)."""
+        return Scatter(
+            self._in_order, self._robots_in, self._slots, self._positions_in, self._velocities_in
+        )
 
     def place(self, positions: np.ndarray) -> None:
         """Teleport every robot (used at reset) and stop it."""

@@ -13,8 +13,10 @@ cannot. Skipped unless the tests run as root with util-linux's `setpriv`.
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
+import pkgutil
 import shutil
 import subprocess
 import sys
@@ -119,3 +121,30 @@ def test_controller_runs_and_warns_when_no_cache_folder_is_writable(
     time_s, positions = _episode()
     assert report["time_s"] == time_s
     assert np.array_equal(np.array(report["positions"]), positions)
+
+
+def test_compiled_functions_call_only_compiled_functions_of_their_own_file() -> None:
+    """numba renews a function's on-disk cache when its own source file changes, not when a
+    compiled function it calls in another file does: the cached caller would keep the old
+    callee's code. So every compiled function of the engine calls compiled functions (and
+    intrinsics) of its own file only."""
+    from numba.core.dispatcher import Dispatcher
+    from numba.core.extending import _Intrinsic
+
+    import tavc_env.engine
+    import tavc_env.engine.navigation as navigation
+
+    modules = [
+        importlib.import_module(f"tavc_env.engine.{m.name}")
+        for m in pkgutil.iter_modules(tavc_env.engine.__path__)
+    ]
+    callers = [v for mod in modules for v in vars(mod).values() if isinstance(v, Dispatcher)]
+    assert navigation.run_ticks in callers
+    for caller in callers:
+        func = caller.py_func
+        for name in func.__code__.co_names:
+            callee = func.__globals__.get(name)
+            if isinstance(callee, Dispatcher):
+                assert callee.py_func.__module__ == func.__module__, (func.__name__, name)
+            elif isinstance(callee, _Intrinsic):
+                assert callee._defn.__module__ == func.__module__, (func.__name__, name)
