@@ -174,3 +174,15 @@ def test_an_interim_report_runs_nothing_and_says_how_much_is_in(tmp_path: Path) 
     assert f"{len(before)} of {len(before) + len(dropped)} trials saved so far" in md
     assert "| softmax_T0.02 |" not in md.split("## Cells")[1].split("## The twin")[0]
     assert "over 2 trials" in outcome.text  # the T = 0.005 cell lost one of its three
+
+
+def test_a_recomputed_cell_is_timed_and_identical_to_the_committed_trials(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    script = Path(__file__).resolve().parents[3] / "benchmarks" / "regime_cell.py"
+    args = ["--trials", "2", "--workers", "1", "--out", str(tmp_path)]
+    assert subprocess.run([sys.executable, str(script), *args], check=False).returncode == 0
+    found = json.loads((tmp_path / "regime_cell.json").read_text())
+    assert found["identical_to_committed"] == 2 and found["differ"] == []
+    assert "2 of 2 trials are identical" in (tmp_path / "regime_cell.md").read_text()
