@@ -40,9 +40,7 @@ from tavc_agents.studies import regime_map as rm
 from tavc_agents.studies.common import (
     RESULTS_DIR,
     Outcome,
-    SweepOptions,
     at_least,
-    positive,
     refuse_invalid,
     replace,
 )
@@ -58,8 +56,8 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
-    """The decisive test's settings (its command line)."""
+class Settings(rm.CellDesign):
+    """The decisive test's settings (its command line); the twin's cell k draws from [seed, k]."""
 
     stage: Literal["predict", "test"] = "predict"
     """predict (twin only: the prediction and the plan) or test (the plan's physics trials)"""
@@ -75,14 +73,6 @@ class Settings(SweepOptions):
     """physics trials of random allocation (predict)"""
     other_trials: int = 60
     """physics trials of every other condition (predict)"""
-    convergence_h: float = 15.0
-    measured_h: float = 5.0
-    e_seeds: int = 5
-    e_hours: float = 3.0
-    table_seeds: int = 3
-    table_hours: float = 1.0
-    seed: int = 0
-    """physics trial k of every cell uses seed + k; the twin's cell k draws from [seed, k]"""
     prediction: Path = RESULTS_DIR / "passing_prediction" / "prediction.json"
     """the committed prediction whose plan the test stage runs (test)"""
     quick: bool = False
@@ -105,13 +95,6 @@ class Settings(SweepOptions):
                 ),
                 ("control_trials", at_least(self.control_trials, 2), "an integer >= 2"),
                 ("other_trials", at_least(self.other_trials, 2), "an integer >= 2"),
-                ("convergence_h", positive(self.convergence_h), "a finite number > 0"),
-                ("measured_h", positive(self.measured_h), "a finite number > 0"),
-                ("e_seeds", at_least(self.e_seeds, 2), "an integer >= 2"),
-                ("e_hours", positive(self.e_hours), "a finite number > 0"),
-                ("table_seeds", at_least(self.table_seeds, 1), "an integer >= 1"),
-                ("table_hours", positive(self.table_hours), "a finite number > 0"),
-                ("seed", at_least(self.seed, 0), "an integer >= 0"),
             ],
         )
 

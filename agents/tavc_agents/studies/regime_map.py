@@ -108,19 +108,10 @@ CONDITIONS: Mapping[str, tuple[str, Mapping[str, Any]]] = {
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
-    """The regime map's settings (its command line)."""
+class CellDesign(SweepOptions):
+    """How an arena's cells are made: the trials' periods and seeds, and the runs that measure the
+    arena's e and twin tables (the regime map's, and the passing arena's decisive test's)."""
 
-    arenas: str = ",".join(MAPPED)
-    """comma-separated subset of the arenas dahl2004, dahl2004_instant_docks, dahl2004_competence,
-    dahl2004_light_stations, dahl2004_congestion, dahl2004_bays"""
-    trials: int = 60
-    """physics trials per cell"""
-    decisive_trials: int = 400
-    """physics trials in the cells that decide the question (softmax T = 0.005 and 0.01 on
-    dahl2004_congestion and dahl2004)"""
-    twin_trials: int = 100
-    """model-twin trials per cell (0: no twin)"""
     convergence_h: float = 15.0
     """convergence period, simulated hours"""
     measured_h: float = 5.0
@@ -135,6 +126,37 @@ class Settings(SweepOptions):
     """simulated hours per twin-table run"""
     seed: int = 0
     """trial k of every cell uses seed + k"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        refuse_invalid(
+            self,
+            [
+                ("convergence_h", positive(self.convergence_h), "a finite number > 0"),
+                ("measured_h", positive(self.measured_h), "a finite number > 0"),
+                ("e_seeds", at_least(self.e_seeds, 2), "an integer >= 2"),
+                ("e_hours", positive(self.e_hours), "a finite number > 0"),
+                ("table_seeds", at_least(self.table_seeds, 1), "an integer >= 1"),
+                ("table_hours", positive(self.table_hours), "a finite number > 0"),
+                ("seed", at_least(self.seed, 0), "an integer >= 0"),
+            ],
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(CellDesign):
+    """The regime map's settings (its command line)."""
+
+    arenas: str = ",".join(MAPPED)
+    """comma-separated subset of the arenas dahl2004, dahl2004_instant_docks, dahl2004_competence,
+    dahl2004_light_stations, dahl2004_congestion, dahl2004_bays"""
+    trials: int = 60
+    """physics trials per cell"""
+    decisive_trials: int = 400
+    """physics trials in the cells that decide the question (softmax T = 0.005 and 0.01 on
+    dahl2004_congestion and dahl2004)"""
+    twin_trials: int = 100
+    """model-twin trials per cell (0: no twin)"""
     quick: bool = False
     """smoke run: 2 trials (3 in decisive cells, 2 twin) of 0.3 + 0.2 h, short e and table runs"""
     interim: bool = False
@@ -153,13 +175,6 @@ class Settings(SweepOptions):
             ("trials", at_least(self.trials, 2), "an integer >= 2"),
             ("decisive_trials", at_least(self.decisive_trials, 2), "an integer >= 2"),
             ("twin_trials", at_least(self.twin_trials, 0), "an integer >= 0"),
-            ("convergence_h", positive(self.convergence_h), "a finite number > 0"),
-            ("measured_h", positive(self.measured_h), "a finite number > 0"),
-            ("e_seeds", at_least(self.e_seeds, 2), "an integer >= 2"),
-            ("e_hours", positive(self.e_hours), "a finite number > 0"),
-            ("table_seeds", at_least(self.table_seeds, 1), "an integer >= 1"),
-            ("table_hours", positive(self.table_hours), "a finite number > 0"),
-            ("seed", at_least(self.seed, 0), "an integer >= 0"),
         ]
         refuse_invalid(self, checks)
 
