@@ -88,8 +88,17 @@ def _git(*args: str) -> str | None:
 def run_metadata(**extra: Any) -> dict[str, Any]:
     """Machine, software versions, git state, UTC time and the exact command line of this run."""
     commit = _git("rev-parse", "HEAD")
-    # Dirty means changed code or docs; result files written by this or a concurrent run do not count.
-    status = _git("status", "--porcelain", "--", ".", ":(exclude)benchmarks/results")
+    # Dirty means changed code or docs; result files written by this or a concurrent run do not
+    # count: the reference results and the reference data shipped in the package (the TAVC models
+    # that `tavc_model --update-reference` writes).
+    status = _git(
+        "status",
+        "--porcelain",
+        "--",
+        ".",
+        ":(exclude)benchmarks/results",
+        ":(exclude)agents/tavc_agents/data",
+    )
     versions = {"python": platform.python_version()}
     versions.update({name: _version(name) for name in _DISTRIBUTIONS})  # type: ignore[misc]
     versions["tavc_env"] = _version("tavc-env")  # type: ignore[assignment]
