@@ -21,6 +21,7 @@ The script is `benchmarks/passing.py`.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from collections.abc import Mapping, Sequence
@@ -36,6 +37,13 @@ from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.provenance import run_metadata, run_recorded
 from tavc_agents.experiments.sweep import run_jobs
 from tavc_agents.experiments.twin_batch import run_batch
+from tavc_agents.model import (
+    CompletionModel,
+    SpeedClasses,
+    allocation_of,
+    load_model,
+    missing_model,
+)
 from tavc_agents.studies import regime_map as rm
 from tavc_agents.studies.common import (
     RESULTS_DIR,
@@ -46,6 +54,8 @@ from tavc_agents.studies.common import (
 )
 from tavc_agents.studies.elasticity import measure_elasticity
 from tavc_agents.studies.twin_batch import learner_of
+from tavc_env import ArenaConfig
+from tavc_env._validation import require
 from tavc_env.twin import InterferenceTables
 
 TEMPERATURES = (0.002, 0.005, 0.01)
@@ -376,6 +386,47 @@ def test_row(
     return row
 
 
+def start_value(model: CompletionModel, config: ArenaConfig) -> float:
+    """The model's performance of the start allocation, expected over the random order `reset`
+    draws (robots at ranks 0, 2, 4, ... on circuit 0 of two): what `stay` holds all along."""
+    require(config.n_circuits == 2, "config.n_circuits", config.n_circuits, "2")
+    classes = SpeedClasses.of(config)
+    n = config.n_robots
+    values = [
+        model.performance(
+            allocation_of([0 if i in first else 1 for i in range(n)], classes, config.n_circuits)
+        )
+        for first in itertools.combinations(range(n), (n + 1) // 2)
+    ]
+    return float(np.mean(values))
+
+
+def value_lines(arena: str, rows: Sequence[Row]) -> list[str]:
+    """The model optimum, the start allocation (`stay`) and each cell as fractions of it, from the
+    arena's shipped TAVC model (a line saying why not, where it has none)."""
+    preset = rm.ARENAS[arena]
+    why = missing_model(str(preset["preset"])) if set(preset) == {"preset"} else "overrides"
+    if why is not None:
+        return [f"No TAVC model of `{arena}` to value its allocations against ({why})."]
+    config = rm.arena_config(arena)
+    model = load_model(str(preset["preset"]))
+    best = model.optimum()
+    optimum = model.performance(best)
+    start = start_value(model, config)
+    lines = [
+        f"Model optimum ({' | '.join(f'c{i}: {model.describe(g)}' for i, g in enumerate(best))}): "
+        f"{optimum:.4f} per robot per 10 s. The start allocation, which `stay` keeps, is worth "
+        f"{start / optimum:.3f} of it (expected over the random start order).",
+        "",
+    ]
+    for r in rows:
+        lo, hi = r["performance_lo"] / optimum, r["performance_hi"] / optimum
+        lines.append(
+            f"- `{r['condition']}`: " + fmt_ci(r["performance"] / optimum, lo, hi, 3) + " of it."
+        )
+    return lines
+
+
 def _test_body(s: Settings, rows: Sequence[Row], trials: Mapping[str, int], done: int) -> str:
     planned = sum(trials.values())
     table = markdown_table(
@@ -434,6 +485,10 @@ def _test_body(s: Settings, rows: Sequence[Row], trials: Mapping[str, int], done
                 for r in rows
                 if r["condition"] != "random"
             ],
+            "",
+            "## What the allocation is worth",
+            "",
+            *value_lines(s.arena, rows),
             "",
             "## Method",
             "",

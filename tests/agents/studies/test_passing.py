@@ -111,3 +111,18 @@ def test_both_stages_end_to_end_and_a_prediction_for_another_arena_refused(tmp_p
                 out=tmp_path / "other",
             )
         )
+
+
+def test_the_start_allocation_s_value_matches_the_allocator_study() -> None:
+    import tavc_env
+    from tavc_agents.model import load_model
+
+    model = load_model("dahl2004")
+    fraction = passing.start_value(model, tavc_env.preset("dahl2004")) / model.performance(
+        model.optimum()
+    )
+    assert fraction == pytest.approx(0.966, abs=0.0005)  # the allocator study's committed figure
+    lines = passing.value_lines("dahl2004_instant_docks", [])
+    assert lines == [
+        "No TAVC model of `dahl2004_instant_docks` to value its allocations against (overrides)."
+    ]
