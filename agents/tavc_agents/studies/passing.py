@@ -118,12 +118,7 @@ class Settings(rm.CellDesign):
             max_decisive=3,
             control_trials=2,
             other_trials=2,
-            convergence_h=0.3,
-            measured_h=0.2,
-            e_seeds=2,
-            e_hours=0.4,
-            table_seeds=2,
-            table_hours=0.4,
+            **rm.QUICK_DESIGN,
         )
 
     def reference_dir(self) -> Path:

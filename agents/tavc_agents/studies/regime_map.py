@@ -107,6 +107,17 @@ CONDITIONS: Mapping[str, tuple[str, Mapping[str, Any]]] = {
 """Condition name -> (allocator, its parameters)."""
 
 
+QUICK_DESIGN: Mapping[str, Any] = {
+    "convergence_h": 0.3,
+    "measured_h": 0.2,
+    "e_seeds": 2,
+    "e_hours": 0.4,
+    "table_seeds": 2,
+    "table_hours": 0.4,
+}
+"""`CellDesign`'s sizes in a smoke run (`--quick`)"""
+
+
 @dataclass(frozen=True, kw_only=True)
 class CellDesign(SweepOptions):
     """How an arena's cells are made: the trials' periods and seeds, and the runs that measure the
@@ -191,12 +202,7 @@ class Settings(CellDesign):
             trials=2,
             decisive_trials=3,
             twin_trials=min(self.twin_trials, 2),
-            convergence_h=0.3,
-            measured_h=0.2,
-            e_seeds=2,
-            e_hours=0.4,
-            table_seeds=2,
-            table_hours=0.4,
+            **QUICK_DESIGN,
         )
 
     def reference_dir(self) -> Path:
