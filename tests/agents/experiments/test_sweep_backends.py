@@ -24,13 +24,23 @@ from tavc_agents.experiments.files import write_manifest
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TrialSpec, json_jobs, result_path, run_jobs, run_sweep
 
-TINY = {"convergence_s": 120.0, "measured_s": 240.0}
 ENV = {"preset": "dahl2004"}
+# The first trial is short and the others long (12 simulated hours, about 2 s of CPU with
+# the compiled tick), so a kill sent when the first result appears lands while the others run,
+# however fast the machine: with four short trials the sweep could finish before the kill.
+LONG_CONVERGENCE_S = 12 * 3600.0
 
 
 def specs(n: int = 4) -> list[TrialSpec]:
     return [
-        TrialSpec(key=f"softmax_s{s}", allocator="softmax_tavc", seed=s, env_kwargs=ENV, **TINY)
+        TrialSpec(
+            key=f"softmax_s{s}",
+            allocator="softmax_tavc",
+            seed=s,
+            env_kwargs=ENV,
+            convergence_s=120.0 if s == 0 else LONG_CONVERGENCE_S,
+            measured_s=240.0,
+        )
         for s in range(n)
     ]
 
@@ -48,11 +58,9 @@ def uninterrupted(tmp_path_factory: pytest.TempPathFactory) -> dict[str, TrialRe
 
 SWEEP_SCRIPT = """
 import sys
-from tavc_agents.experiments.sweep import TrialSpec, run_sweep
-specs = [TrialSpec(key=f"softmax_s{s}", allocator="softmax_tavc", seed=s,
-                   env_kwargs={"preset": "dahl2004"}, convergence_s=120.0, measured_s=240.0)
-         for s in range(4)]
-run_sweep(specs, sys.argv[1], workers=2)
+from tavc_agents.experiments.sweep import run_sweep
+from tests.agents.experiments.test_sweep_backends import specs
+run_sweep(specs(), sys.argv[1], workers=2)
 """
 
 
