@@ -152,6 +152,12 @@ class Settings(rm.CellDesign):
 
 
 # -- stage 1: the prediction --------------------------------------------------------------------
+def _effect(row: Row, prefix: str = "") -> str:
+    """A row's fast - slow with its 95 % interval (`prefix` "predicted_": the twin's)."""
+    key = f"{prefix}fast_minus_slow"
+    return fmt_ci(row[key], row[f"{key}_lo"], row[f"{key}_hi"], 3)
+
+
 def trials_for_power(sd: float, effect: float) -> float:
     """Trials for 80 % power in a two-sided 5 % test of a mean `effect` with per-trial spread `sd`
     (inf where the effect is 0 or undefined)."""
@@ -231,7 +237,7 @@ def _prediction_body(s: Settings, e: Any, rows: Sequence[Row], trials: Mapping[s
             [
                 r["condition"],
                 r["twin_trials"],
-                fmt_ci(r["fast_minus_slow"], r["fast_minus_slow_lo"], r["fast_minus_slow_hi"], 3),
+                _effect(r),
                 f"{r['fast_minus_slow_sd']:.3f}",
                 "inf"
                 if not math.isfinite(r["trials_for_80_power"])
@@ -245,7 +251,7 @@ def _prediction_body(s: Settings, e: Any, rows: Sequence[Row], trials: Mapping[s
     decisive = [c for c, n in trials.items() if n >= s.min_decisive and c.startswith("softmax")]
     lines = [
         f"- `{r['condition']}`: the twin predicts fast - slow = "
-        + fmt_ci(r["fast_minus_slow"], r["fast_minus_slow_lo"], r["fast_minus_slow_hi"], 3)
+        + _effect(r)
         + f"; {trials[r['condition']]} physics trials planned."
         for r in rows
         if r["condition"] in decisive
@@ -439,14 +445,9 @@ def _test_body(s: Settings, rows: Sequence[Row], trials: Mapping[str, int], done
             [
                 r["condition"],
                 f"{r['trials']} ({trials[r['condition']]})",
-                fmt_ci(r["fast_minus_slow"], r["fast_minus_slow_lo"], r["fast_minus_slow_hi"], 3),
+                _effect(r),
                 f"{r['wilcoxon_p']:.2g}" if math.isfinite(r["wilcoxon_p"]) else "-",
-                fmt_ci(
-                    r["predicted_fast_minus_slow"],
-                    r["predicted_fast_minus_slow_lo"],
-                    r["predicted_fast_minus_slow_hi"],
-                    3,
-                ),
+                _effect(r, "predicted_"),
                 fmt_ci(r["time_3_0_pct"], r["time_3_0_lo"], r["time_3_0_hi"], 1),
                 fmt_ci(r["q_gap_fast_minus_slow"], r["q_gap_lo"], r["q_gap_hi"], 4),
                 fmt_ci(r["ratio_to_random"], r["ratio_lo"], r["ratio_hi"], 3),
@@ -468,14 +469,9 @@ def _test_body(s: Settings, rows: Sequence[Row], trials: Mapping[str, int], done
             "",
             *[
                 f"- `{r['condition']}`: fast - slow = "
-                + fmt_ci(r["fast_minus_slow"], r["fast_minus_slow_lo"], r["fast_minus_slow_hi"], 3)
+                + _effect(r)
                 + f" over {r['trials']} trials (**{r['direction']}**); the twin predicted "
-                + fmt_ci(
-                    r["predicted_fast_minus_slow"],
-                    r["predicted_fast_minus_slow_lo"],
-                    r["predicted_fast_minus_slow_hi"],
-                    3,
-                )
+                + _effect(r, "predicted_")
                 + "."
                 for r in rows
                 if r["condition"] != "random"
