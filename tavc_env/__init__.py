@@ -13,6 +13,7 @@ with task times drawn from measured interference tables (`tavc_env.twin`), for f
 studies; never a replacement for the physics.
 """
 
+from tavc_env import scenarios
 from tavc_env.config import (
     PRESETS,
     ArenaConfig,
@@ -38,6 +39,7 @@ from tavc_env.env import (
 from tavc_env.observations import OBSERVATION_FORMATS, OBSERVATION_MODES
 from tavc_env.options import EnvOptions
 from tavc_env.registration import REGISTRY_ID, REGISTRY_ID_V0, register
+from tavc_env.scenarios import SCENARIOS, Scenario, ScenarioEnv, ValueShifts
 from tavc_env.twin import InterferenceTables, TaskTimeCell, TwinArenaEnv, twin_parallel_env
 
 register()
@@ -52,16 +54,20 @@ __all__ = [
     "PRESETS",
     "REGISTRY_ID",
     "REGISTRY_ID_V0",
+    "SCENARIOS",
     "ArenaConfig",
     "Breakdown",
     "Circuit",
     "EnvOptions",
     "InterferenceTables",
     "Robot",
+    "Scenario",
+    "ScenarioEnv",
     "Simulation",
     "TaskTimeCell",
     "TavcArenaEnv",
     "TwinArenaEnv",
+    "ValueShifts",
     "__version__",
     "completed_task_s",
     "env",
@@ -72,5 +78,6 @@ __all__ = [
     "raw_env",
     "robots_from_speeds",
     "scaled_config",
+    "scenarios",
     "twin_parallel_env",
 ]

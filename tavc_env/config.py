@@ -191,6 +191,10 @@ class ArenaConfig:
     # False (every preset but dahl2004_passing): the governor slows a robot for anything in its
     # front half-plane, so passing needs a wide berth.
     overtaking: bool = False
+    # Where the robots stand at reset: one circuit per robot, each robot at that circuit's sink
+    # (the first at the dock, the rest in its waiting line, in robot order). Empty (the default):
+    # spread evenly over the circuits in an order drawn from the reset's generator.
+    start_circuits: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         for name, kind in (
@@ -199,6 +203,10 @@ class ArenaConfig:
             ("breakdowns", "tavc_env.Breakdown"),
         ):
             object.__setattr__(self, name, _items(name, getattr(self, name), kind))
+        start = _items("start_circuits", self.start_circuits, "circuit index")
+        object.__setattr__(
+            self, "start_circuits", tuple(int(c) if is_integer(c) else c for c in start)
+        )
         # the stations, once (validation and layout look them up per station; not a field)
         stations = []
         for i, c in enumerate(self.circuits):
@@ -319,6 +327,16 @@ class ArenaConfig:
                 f"breakdowns[{i}].robot",
                 event.robot,
                 f"a robot index in [0, {self.n_robots - 1}]",
+            )
+        if self.start_circuits:
+            m = self.n_circuits
+            require(
+                len(self.start_circuits) == self.n_robots
+                and all(is_integer(c) and 0 <= c < m for c in self.start_circuits),
+                "start_circuits",
+                self.start_circuits,
+                f"empty (an even spread) or {self.n_robots} circuit indices in [0, {m - 1}], "
+                "one per robot",
             )
         require(
             _robots_fit(self.n_robots, self.robot_radius, self.width, self.height),
@@ -563,6 +581,9 @@ PRESETS: Mapping[str, Any] = {
     "dahl2004_congestion": lambda: _dahl2004().replace(**CONGESTION),
     "dahl2004_bays": lambda: _dahl2004().replace(**BAYS),
     "dahl2004_passing": lambda: _dahl2004().replace(**PASSING),
+    # 24 robots (fast and slow alternating) on eight lane circuits worth 2200 down to 2130, 9 m
+    # apart as in dahl2004: the paper's density (three robots a circuit) at four times its size
+    "large_team": lambda: scaled_config(8, 3),
 }
 
 

@@ -122,6 +122,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self.sim: E = self._new_engine()
         self._rng: np.random.Generator | None = None
         self._history: _History | None = None  # what was done to the arena since reset
+        self._value_plan: list[tuple[float, tuple[float, ...]]] = []  # (at_s, values), in order
         self.num_cycles = 0
         self._last_task_time = np.full(n, math.nan)  # of the task each robot completed this step
         self._last_task_by_circuit = np.full((n, m), math.nan)  # (rich observations)
@@ -147,6 +148,8 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         )
         if seed is not None or self._rng is None:
             self._rng, _ = seeding.np_random(None if seed is None else int(seed))
+        # planned before the arena's reset, so that the arena's own history starts after it
+        self._value_plan = self._plan_values(self._rng)
         self._history = _History(copy.deepcopy(self._rng))
         self.sim.reset(self._rng)
         _HISTORIES[self.sim] = self._history
@@ -177,12 +180,17 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         opts = self.options
         remaining = opts.max_sim_time_s - self.sim.time_s
         if opts.decision_interval_s is None:
-            duration, stop = min(opts.step_cap_s, remaining), True
+            # an event-driven step also ends when the circuits' values change, so that every
+            # delivery is paid at the values in force when it was made
+            planned = self._value_plan[0][0] - self.sim.time_s if self._value_plan else math.inf
+            duration, stop = min(opts.step_cap_s, remaining, planned), True
         else:
             duration, stop = min(opts.decision_interval_s, remaining), False
         out = self.sim.advance(duration, stop_on_decision=stop)
         history.advance(duration, stop)
         rewards = self._rewards(out)
+        while self._value_plan and self._value_plan[0][0] <= self.sim.time_s + 1e-9:
+            self.set_circuit_values(self._value_plan.pop(0)[1])
         self.num_cycles += 1
         truncated = (
             self.num_cycles >= opts.max_cycles or self.sim.time_s >= opts.max_sim_time_s - 1e-9
@@ -194,6 +202,13 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         if truncated:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
+
+    def _plan_values(self, rng: np.random.Generator) -> list[tuple[float, tuple[float, ...]]]:
+        """The episode's planned priority changes, drawn at reset before the arena: `(at_s,
+        values)` in time order, applied when simulated time reaches `at_s` (an event-driven step
+        ends there). None here; a scenario with priority shifts plans them
+        (`tavc_env.scenarios`)."""
+        return []
 
     # -- what the engine decides ---------------------------------------------------------------
     def _new_engine(self) -> E:
@@ -324,6 +339,12 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         history = self._recorder()
         self.sim.set_circuit_values(np.array(new_values))
         history.set_values(new_values)
+
+    @property
+    def value_plan(self) -> tuple[tuple[float, tuple[float, ...]], ...]:
+        """The priority changes still to come this episode, `(at_s, values)` in time order (see
+        `_plan_values`; empty outside scenarios with priority shifts)."""
+        return tuple(self._value_plan)
 
     # -- copying (see the module's docstring) --------------------------------------------------
     def __getstate__(self) -> dict[str, Any]:

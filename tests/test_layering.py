@@ -32,6 +32,7 @@ LAYERS: list[tuple[int, str]] = [
     (2, "tavc_env.twin.measure"),  # the twin's tables measured with them
     (3, "tavc_env.env"),
     (3, "tavc_env.twin"),  # the twin's env (and the package's public names)
+    (3, "tavc_env.scenarios"),  # arenas with schedules and evaluation protocols
     (3, "tavc_env.registration"),
     (3, "tavc_env.v0"),
     (3, "tavc_env"),  # the package's __init__: the public API, re-exporting the env

@@ -138,6 +138,17 @@ class Repairable(Protocol):
     def repair(self, robot: int) -> None: ...
 
 
+def start_allocation(config: ArenaConfig, rng: np.random.Generator) -> list[tuple[int, int]]:
+    """Where each robot starts, as `(robot, circuit)` in the order robots take their places at
+    the sinks (the first of a circuit at its dock, the next ones in its waiting line):
+    `config.start_circuits` in robot order if given, else an even spread over the circuits in an
+    order drawn from `rng` (never by speed). Both engines start so."""
+    if config.start_circuits:
+        return list(enumerate(config.start_circuits))
+    m = config.n_circuits
+    return [(int(i), rank % m) for rank, i in enumerate(rng.permutation(config.n_robots))]
+
+
 def breakdown_schedule(config: ArenaConfig) -> list[ScheduleEntry]:
     """The config's scheduled breakdowns as schedule entries, in time order (-1: no repair)."""
     return sorted(

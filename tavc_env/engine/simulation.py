@@ -20,6 +20,7 @@ from tavc_env.engine.base import (
     add_repair,
     breakdown_schedule,
     run_due,
+    start_allocation,
     without_repairs,
 )
 from tavc_env.engine.navigation import (
@@ -144,8 +145,9 @@ class Simulation:
         return self._rng
 
     def reset(self, rng: np.random.Generator) -> None:
-        """Rebuild the world and put robots at the sinks, spread evenly over circuits in an order
-        drawn from `rng` (never by speed). Everyone starts deciding."""
+        """Rebuild the world and put robots at the sinks: on `config.start_circuits` if given,
+        else spread evenly over circuits in an order drawn from `rng` (never by speed). Everyone
+        starts deciding."""
         if not isinstance(rng, np.random.Generator):
             raise ValueError(
                 f"rng = {rng!r} is invalid; allowed: a numpy.random.Generator "
@@ -158,11 +160,9 @@ class Simulation:
         self.time_s = 0.0
         self.ticks = 0
         n, m = cfg.n_robots, cfg.n_circuits
-        order = rng.permutation(n)
         positions = np.zeros((n, 2))
         per_circuit = [0] * m
-        for rank, i in enumerate(order):
-            c = rank % m
+        for i, c in start_allocation(cfg, rng):
             k = per_circuit[c]
             per_circuit[c] += 1
             sink = self.tasks.stations[self.tasks.sink_of(c)]

@@ -18,6 +18,7 @@ from tavc_env.engine.base import (
     breakdown_schedule,
     next_due_s,
     run_due,
+    start_allocation,
     without_repairs,
 )
 from tavc_env.engine.tasks import Completion, Phase
@@ -91,8 +92,8 @@ class TaskTimeProcess:
         return self._rng
 
     def reset(self, rng: np.random.Generator) -> None:
-        """Robots at the sinks, spread evenly over the circuits in an order drawn from `rng`
-        (as in the physics); everyone decides."""
+        """Robots on their start circuits (`tavc_env.engine.base.start_allocation`, as in the
+        physics); everyone decides."""
         require(
             isinstance(rng, np.random.Generator),
             "rng",
@@ -104,8 +105,8 @@ class TaskTimeProcess:
         self.time_s = 0.0
         self.tasks = TwinTasks(cfg)
         self._clear()
-        for rank, i in enumerate(rng.permutation(cfg.n_robots)):
-            self.tasks.circuit[i] = rank % cfg.n_circuits
+        for i, c in start_allocation(cfg, rng):
+            self.tasks.circuit[i] = c
         self._schedule = breakdown_schedule(cfg)
 
     # -- decisions and failures ----------------------------------------------------------------

@@ -214,16 +214,26 @@ def _factory_name(factory: Callable[..., Any]) -> str:
 
 
 def env_arguments(env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
-    """A plain mapping of env arguments (a `preset` or `config`, arena overrides and env options,
+    """A plain mapping of env arguments (a `scenario`, or a `preset` or `config` and arena overrides; env options,
     mixed, as a sweep's `TrialSpec.env_kwargs` holds them) as `run_trial`'s keyword arguments
     `preset`, `config`, `arena` and `options`; any other key is a ValueError naming it."""
     rest = dict(env_kwargs)
-    out: dict[str, Any] = {k: rest.pop(k) for k in ("preset", "config") if k in rest}
+    out: dict[str, Any] = {k: rest.pop(k) for k in ("scenario", "preset", "config") if k in rest}
     arena, options = split_env_kwargs(rest)
     out["arena"] = arena
     if options:
         out["options"] = tavc_env.EnvOptions(**options)
     return out
+
+
+def trial_streams(seed: int, n_agents: int) -> list[np.random.SeedSequence]:
+    """A trial's random streams from its `seed`: the env's first, then one per agent."""
+    return list(np.random.SeedSequence(seed).spawn(n_agents + 1))
+
+
+def env_seed(stream: np.random.SeedSequence) -> int:
+    """The seed a trial resets its env with, from the env's stream (`trial_streams(...)[0]`)."""
+    return int(stream.generate_state(1)[0])
 
 
 def run_trial(
@@ -242,6 +252,7 @@ def run_trial(
     config: tavc_env.ArenaConfig | None = None,
     arena: Mapping[str, Any] | None = None,
     options: tavc_env.EnvOptions | None = None,
+    scenario: str | None = None,
 ) -> TrialResult:
     """Run one trial and return what it recorded.
 
@@ -257,6 +268,9 @@ def run_trial(
     `max_sim_time_s` from the two periods (and lifts `max_cycles`): `options` must leave those two
     at their defaults. `env_arguments` turns a plain mapping of all of these (as a sweep's
     `TrialSpec.env_kwargs` holds them) into these arguments.
+
+    `scenario` (a name in `tavc_env.scenarios.SCENARIOS`) runs the trial in that scenario: its
+    arena and its priority shifts (not with `preset`, `config`, `arena` or `env_factory`).
 
     `env_factory` (None: `tavc_env.parallel_env`) builds the env instead, from the same keyword
     arguments: e.g. `functools.partial(tavc_env.twin_parallel_env, tables=tables)` runs the trial
@@ -316,6 +330,18 @@ def run_trial(
     arena_kwargs: dict[str, Any] = {} if preset is None else {"preset": preset}
     if config is not None:
         arena_kwargs["config"] = config
+    if scenario is not None:
+        given = {"preset": preset, "config": config, "arena": arena, "env_factory": env_factory}
+        clash = sorted(k for k, v in given.items() if v)
+        require(
+            not clash,
+            "scenario",
+            scenario,
+            f"a scenario alone (it fixes the arena; got also {clash})",
+        )
+        tavc_env.scenarios.scenario_named(scenario)  # a clear error before anything runs
+        make_env = tavc_env.scenarios.parallel_env
+        arena_kwargs = {"scenario": scenario}
     env = make_env(
         options=chosen.replace(max_sim_time_s=total, max_cycles=10**9),
         **arena_kwargs,
@@ -339,7 +365,7 @@ def run_trial(
             )
         table = dict(policies)
 
-    env_seq, *policy_seqs = np.random.SeedSequence(seed).spawn(len(agents) + 1)
+    env_seq, *policy_seqs = trial_streams(seed, len(agents))
     n_actions = env.config.n_circuits
     for agent, seq in zip(agents, policy_seqs):
         table[agent].reset(np.random.default_rng(seq), n_actions)
@@ -347,7 +373,7 @@ def run_trial(
     cfg = env.config
     # what the caller chose, as a sweep's TrialSpec.env_kwargs would hold it
     recorded = _jsonable({**arena_kwargs, **overrides, **chosen.changed()})
-    if make_env is not tavc_env.parallel_env:
+    if make_env not in (tavc_env.parallel_env, tavc_env.scenarios.parallel_env):
         recorded["env_factory"] = _factory_name(make_env)
     result = TrialResult(
         seed=seed,
@@ -363,7 +389,7 @@ def run_trial(
         initial_circuits=[],
     )
     started = time.perf_counter()
-    obs, infos = env.reset(seed=int(env_seq.generate_state(1)[0]))
+    obs, infos = env.reset(seed=env_seed(env_seq))
     result.initial_circuits = [infos[a]["circuit"] for a in agents]
     current = list(result.initial_circuits)
     driver = PolicyDriver({agent: table[agent] for agent in agents})

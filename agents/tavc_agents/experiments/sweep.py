@@ -128,7 +128,15 @@ def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
     from tavc_env import make_config
     from tavc_env.options import split_env_kwargs
 
+    from tavc_env.scenarios import scenario_named
+
     arena = dict(env_kwargs)
+    if "scenario" in arena:  # its arena, and its priority shifts if it has any
+        chosen = scenario_named(arena["scenario"])
+        text = digest_text(chosen.config())
+        if chosen.value_shifts is not None:
+            text += repr(chosen.value_shifts)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
     preset, given = arena.pop("preset", None), arena.pop("config", None)
     config = make_config(preset, given, **split_env_kwargs(arena)[0])
     return hashlib.sha256(digest_text(config).encode()).hexdigest()[:16]
