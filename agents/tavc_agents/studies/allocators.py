@@ -42,7 +42,7 @@ import numpy as np
 
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.plots import subplots
-from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
+from tavc_agents.analysis.reports import Report, fmt_ci_of, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.registry import REGISTRY, allocator_names
 from tavc_agents.experiments.runner import TrialResult
@@ -332,10 +332,6 @@ def summarise(
 
 
 # -- the report ----------------------------------------------------------------------------------
-def _ci(row: Mapping[str, Any], key: str, digits: int) -> str:
-    return fmt_ci(row[key], row[f"{key}_low"], row[f"{key}_high"], digits)
-
-
 def preset_section(
     summary: Sequence[Mapping[str, Any]], model: CompletionModel, preset: str
 ) -> str:
@@ -352,10 +348,10 @@ def preset_section(
     rows = [
         [
             r["label"],
-            _ci(r, "performance", 4),
-            _ci(r, "fraction_of_optimum", 3),
-            _ci(r, "allocation_value_fraction", 3),
-            _ci(r, "vs_random", 3),
+            fmt_ci_of(r, "performance", 4),
+            fmt_ci_of(r, "fraction_of_optimum", 3),
+            fmt_ci_of(r, "allocation_value_fraction", 3),
+            fmt_ci_of(r, "vs_random", 3),
             f"{r['switches_per_robot_h']:.2f}",
             settle_text(r),
         ]
@@ -369,7 +365,7 @@ def preset_section(
             "",
             f"Model optimum: {described} = {model.performance(optimum):.4f} per robot per 10 s.",
             "The start's allocation (the reset spreads the robots evenly over the circuits, in an "
-            f"order drawn from the seed) is worth {_ci(start, 'start_value_fraction', 3)} of the "
+            f"order drawn from the seed) is worth {fmt_ci_of(start, 'start_value_fraction', 3)} of the "
             "optimum by the model: that much of every allocator's score the reset hands it.",
             "",
             markdown_table(header, rows),

@@ -43,7 +43,7 @@ import numpy as np
 
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.plots import allocation_timeline
-from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
+from tavc_agents.analysis.reports import Report, fmt_ci_of, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.runner import Event, TrialResult
 from tavc_agents.experiments.study import Outcome, StudySettings
@@ -338,10 +338,6 @@ def summarise(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
 
 
 # -- the report ----------------------------------------------------------------------------------
-def _ci(row: Mapping[str, Any], key: str, digits: int) -> str:
-    return fmt_ci(row[key], row[f"{key}_low"], row[f"{key}_high"], digits)
-
-
 def breakdown_table(summary: Sequence[Mapping[str, Any]]) -> str:
     header = [
         "allocator",
@@ -360,8 +356,8 @@ def breakdown_table(summary: Sequence[Mapping[str, Any]]) -> str:
             minutes_text(r),
             f"{r['head_fast']} / {r['head_slow']}",
             f"{r['chain_moves_mean']:.1f}",
-            _ci(r, "broken_value_per_h", 1),
-            _ci(r, "lost_vs_control_per_h", 1),
+            fmt_ci_of(r, "broken_value_per_h", 1),
+            fmt_ci_of(r, "lost_vs_control_per_h", 1),
             f"{r['reduced_optimum_per_h']:.1f}",
         ]
         for r in summary
@@ -373,7 +369,7 @@ def swap_table(summary: Sequence[Mapping[str, Any]]) -> str:
     keys = [k for k in summary[0] if k.startswith("swap_w") and k.endswith("fraction")]
     return markdown_table(
         ["allocator", *(f"third {k + 1}" for k in range(len(keys)))],
-        [[r["label"], *(_ci(r, k, 3) for k in keys)] for r in summary],
+        [[r["label"], *(fmt_ci_of(r, k, 3) for k in keys)] for r in summary],
     )
 
 
