@@ -249,8 +249,7 @@ def test_outside_a_checkout_reference_results_are_not_assumed(
 ) -> None:
     """What an installed wheel does where a checkout has benchmarks/results (simulated by
     CHECKOUT = None): it refuses to update them and says it has none to read."""
-    from tavc_agents.experiments import provenance
-    from tavc_agents.experiments import study
+    from tavc_agents.experiments import provenance, study
     from tavc_agents.studies import table1
 
     assert Path(__file__).resolve().parents[2] == provenance.CHECKOUT  # the tests run in one

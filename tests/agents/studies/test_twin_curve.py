@@ -106,7 +106,9 @@ def test_a_short_run_end_to_end_and_the_redraw(tmp_path: Path) -> None:
     assert (tmp_path / "run" / study.FIGURE).stat().st_size > 10_000
     assert "dahl2004_passing`: pending" in outcome.text
     again = study.run(
-        dataclasses.replace(s, figure_only=True, passing_prediction=prediction, passing_result=result)
+        dataclasses.replace(
+            s, figure_only=True, passing_prediction=prediction, passing_result=result
+        )
     )
     assert again.written == [tmp_path / "run" / study.FIGURE]
     assert "with the physics result beside it" in again.text
