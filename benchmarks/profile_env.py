@@ -18,8 +18,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from tavc_agents.experiments.study import parse_settings
 from tavc_agents.studies import throughput as study
-from tavc_agents.studies.common import parse_settings
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -28,9 +28,9 @@ from typing import Any
 
 from tavc_agents.experiments.files import write_text
 from tavc_agents.experiments.provenance import run_metadata
+from tavc_agents.experiments.study import RESULTS_DIR
 from tavc_agents.experiments.sweep import run_jobs, saved_results
 from tavc_agents.studies import regime_map as rm
-from tavc_agents.studies.common import RESULTS_DIR
 
 
 def _same(a: Any, b: Any) -> bool:

@@ -45,6 +45,7 @@ LAYERS: list[tuple[int, str]] = [
     (6, "tavc_agents.experiments"),
     (6, "tavc_agents.envs"),
     (7, "tavc_agents.analysis"),
+    (7, "tavc_agents.learning_runs"),  # what the examples that train with a library need
     (8, "tavc_agents.studies"),
     (9, "tavc_agents.cli"),
     (9, "tavc_agents.__main__"),  # `python -m tavc_agents`: the cli

@@ -223,7 +223,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from tavc_agents.analysis import plots
     from tavc_agents.experiments.provenance import CHECKOUT
     from tavc_agents.experiments.runner import TrialResult
-    from tavc_agents.studies.common import RESULTS_DIR
+    from tavc_agents.experiments.study import RESULTS_DIR
 
     if args.what == "interference":
         if args.source is None and CHECKOUT is None:
@@ -277,7 +277,7 @@ def _existing(path: str | Path) -> Path:
 
 def _run_study(name: str, argv: Sequence[str], prog: str) -> int:
     """Run study `name` with command-line arguments `argv`, as `benchmarks/<name>.py` does."""
-    from tavc_agents.studies.common import run_study
+    from tavc_agents.experiments.study import run_study
 
     module = studies.load(name)
     return run_study(module, argv, module.__doc__ or name, prog)

@@ -28,7 +28,7 @@ from ray.rllib.examples.rl_modules.classes.action_masking_rlm import ActionMaski
 from ray.tune.registry import register_env
 
 from tavc_agents.learners.network import Mlp
-from tavc_agents.studies.learning_runs import (
+from tavc_agents.learning_runs import (
     DEFAULT_OPTIONS,
     REWARD_SCALE,
     LearningRun,

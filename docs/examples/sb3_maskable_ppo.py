@@ -21,7 +21,7 @@ import tyro
 from sb3_contrib import MaskablePPO
 
 from tavc_agents.learners.network import Mlp
-from tavc_agents.studies.learning_runs import (
+from tavc_agents.learning_runs import (
     DEFAULT_OPTIONS,
     REWARD_SCALE,
     LearningRun,

@@ -29,7 +29,7 @@ from torchrl.objectives import ClipPPOLoss, ValueEstimators
 
 import tavc_env
 from tavc_agents.learners.network import Mlp
-from tavc_agents.studies.learning_runs import (
+from tavc_agents.learning_runs import (
     DEFAULT_OPTIONS,
     REWARD_SCALE,
     LearningRun,

@@ -249,12 +249,12 @@ def test_outside_a_checkout_reference_results_are_not_assumed(
 ) -> None:
     """What an installed wheel does where a checkout has benchmarks/results (simulated by
     CHECKOUT = None): it refuses to update them and says it has none to read."""
-    from tavc_agents.experiments import provenance
-    from tavc_agents.studies import common, table1
+    from tavc_agents.experiments import provenance, study
+    from tavc_agents.studies import table1
 
     assert Path(__file__).resolve().parents[2] == provenance.CHECKOUT  # the tests run in one
     monkeypatch.setattr(provenance, "CHECKOUT", None)
-    monkeypatch.setattr(common, "CHECKOUT", None)
+    monkeypatch.setattr(study, "CHECKOUT", None)
     with pytest.raises(ValueError, match=r"--update-reference is invalid here: .* allowed: --out"):
         table1.Settings(update_reference=True)
     code, _, err = run(["plot", "interference", "--out", str(tmp_path / "i.png")])

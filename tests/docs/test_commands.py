@@ -23,8 +23,8 @@ from pathlib import Path
 import pytest
 
 from tavc_agents import studies
-from tavc_agents.studies.common import parse_settings
-from tavc_agents.studies.learning_runs import RunOptions
+from tavc_agents.experiments.study import parse_settings
+from tavc_agents.learning_runs import RunOptions
 from tests.docs.markdown import ROOT, Block, documentation_files, fenced_blocks
 
 SKIPPED = ("pip", "mkdocs")  # (and `python -m pytest`)

@@ -13,7 +13,7 @@ import pytest
 
 import tavc_env
 from tavc_agents.learners.network import Mlp
-from tavc_agents.studies.learning_runs import RunOptions, write_learning_run
+from tavc_agents.learning_runs import RunOptions, write_learning_run
 from tests.docs.test_examples import load as example
 
 pytestmark = pytest.mark.marl

@@ -179,6 +179,11 @@ def fmt_ci(mean: float, low: float, high: float, digits: int = 1) -> str:
     return f"{mean:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
 
 
+def fmt_ci_of(row: Mapping[str, Any], key: str, digits: int = 1) -> str:
+    """`fmt_ci` of the columns `key`, `key_low` and `key_high` of a summary row."""
+    return fmt_ci(row[key], row[f"{key}_low"], row[f"{key}_high"], digits)
+
+
 def have_matplotlib() -> bool:
     try:
         import matplotlib  # noqa: F401

@@ -1,7 +1,7 @@
-"""The package's questions, one module each: the settings of a study (a frozen dataclass that is
-also its command line), the trials it runs and the report it writes. The scripts in `benchmarks/`
-and `tavc bench` are thin command lines over these modules: `parse_settings(module.Settings, argv,
-module.__doc__)`, then `module.run(settings)`.
+"""The package's questions, one module each, a short program over the study contract
+(`tavc_agents.experiments.study`): the settings of a study (a frozen dataclass that is also its
+command line), the trials it runs and the report it writes. The scripts in `benchmarks/` and
+`tavc bench` are thin command lines over these modules: `run_study(module, argv, description)`.
 
 `STUDIES` names them; modules are imported only when used, so the command line starts fast.
 """

@@ -31,33 +31,28 @@ interrupted run resumes; `reproduce_rows` re-runs a sample of them against `tria
 
 from __future__ import annotations
 
-import dataclasses
 import inspect
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.plots import subplots
-from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
+from tavc_agents.analysis.reports import Report, fmt_ci_of, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.registry import REGISTRY, allocator_names
 from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
 from tavc_agents.model import CompletionModel, SpeedClasses, load_model, missing_model
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
-    SweepOptions,
-    refuse_invalid,
-    run_trials,
-)
+from tavc_agents.studies.common import at_least, positive, refuse_invalid
 from tavc_agents.studies.row_check import compare_rows, run_fresh, sample_rows
 from tavc_env import make_config
+from tavc_env._validation import is_number
 
 PresetName = Literal["dahl2004", "three_circuits_three_classes"]
 PRESETS: tuple[PresetName, ...] = ("dahl2004", "three_circuits_three_classes")
@@ -74,8 +69,16 @@ TRIAL_MEASURES = (
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The allocator comparison's settings (its command line)."""
+
+    reference: ClassVar = "allocators"
+    quick_sizes: ClassVar = {"trials": 2, "convergence_h": 1.0, "measured_h": 1.0}
+    recorded_as_text: ClassVar = True
+    recorded_fields: ClassVar = (
+        "presets trials convergence_h measured_h backend out=out_text quick model networks "
+        "network_dir"
+    )
 
     presets: tuple[PresetName, ...] = PRESETS
     """arena presets to compare on"""
@@ -101,9 +104,9 @@ class Settings(SweepOptions):
         super().__post_init__()
         checks = [
             ("presets", bool(self.presets) and set(self.presets) <= set(PRESETS), str(PRESETS)),
-            ("trials", _int(self.trials) and self.trials >= 2, "an integer >= 2"),
-            ("convergence_h", _finite(self.convergence_h) and self.convergence_h >= 0, ">= 0"),
-            ("measured_h", _finite(self.measured_h) and self.measured_h > 0, "> 0"),
+            ("trials", at_least(self.trials, 2), "an integer >= 2"),
+            ("convergence_h", is_number(self.convergence_h) and self.convergence_h >= 0, ">= 0"),
+            ("measured_h", positive(self.measured_h), "> 0"),
         ]
         refuse_invalid(self, checks)
         known = allocator_names()
@@ -125,32 +128,10 @@ class Settings(SweepOptions):
     def model_paths(self) -> list[Path | None]:
         return list(self.model) if self.model is not None else [None] * len(self.presets)
 
-    def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
-        if not self.quick:
-            return self
-        return dataclasses.replace(self, trials=2, convergence_h=1.0, measured_h=1.0)
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / ("allocators_quick" if self.quick else "allocators")
-
     def recorded(self) -> dict[str, Any]:
-        """What the report records as the settings (as text, as it always has)."""
-        s = self.sized()
-        return {
-            "presets": str(list(s.presets)),
-            "trials": str(s.trials),
-            "convergence_h": str(float(s.convergence_h)),
-            "measured_h": str(float(s.measured_h)),
-            "backend": s.backend,
-            "out": str(self.out_dir()),
-            "quick": str(s.quick),
-            "model": str(None if s.model is None else list(s.model)),
-            "networks": str(list(s.networks)),
-            "network_dir": str(s.network_dir),
-            # only when given, so the reports of runs without plugins record what they always did
-            **({"plugins": str(list(s.plugins))} if s.plugins else {}),
-        }
+        # plugins only when given, so the reports of runs without them record what they always did
+        plugins = {"plugins": str(list(self.plugins))} if self.plugins else {}
+        return {**super().recorded(), **plugins}
 
     def compared(self, preset: str, model: CompletionModel) -> list[Allocator]:
         """The allocators compared on `preset`, in report order."""
@@ -160,14 +141,6 @@ class Settings(SweepOptions):
         """The trained networks found for `preset`, by learning run."""
         found = {run: self.network_dir / f"{run}_{preset}" / "network.npz" for run in self.networks}
         return {run: path for run, path in found.items() if path.is_file()}
-
-
-def _int(x: int) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool)
-
-
-def _finite(x: float) -> bool:
-    return isinstance(x, (int, float)) and math.isfinite(x)
 
 
 @dataclass(frozen=True)
@@ -258,7 +231,7 @@ def run(settings: Settings) -> Outcome:
     out = settings.out_dir()
     by_preset = models(settings)
     trial_specs = specs(settings, by_preset)
-    results, provenance = run_trials(trial_specs, out / "cache", settings, settings.recorded())
+    results, provenance = settings.run_trials(trial_specs, "cache")
     per_trial = trial_rows(trial_specs, results, by_preset)
     summary: list[dict[str, Any]] = []
     sections = []
@@ -359,10 +332,6 @@ def summarise(
 
 
 # -- the report ----------------------------------------------------------------------------------
-def _ci(row: Mapping[str, Any], key: str, digits: int) -> str:
-    return fmt_ci(row[key], row[f"{key}_low"], row[f"{key}_high"], digits)
-
-
 def preset_section(
     summary: Sequence[Mapping[str, Any]], model: CompletionModel, preset: str
 ) -> str:
@@ -379,10 +348,10 @@ def preset_section(
     rows = [
         [
             r["label"],
-            _ci(r, "performance", 4),
-            _ci(r, "fraction_of_optimum", 3),
-            _ci(r, "allocation_value_fraction", 3),
-            _ci(r, "vs_random", 3),
+            fmt_ci_of(r, "performance", 4),
+            fmt_ci_of(r, "fraction_of_optimum", 3),
+            fmt_ci_of(r, "allocation_value_fraction", 3),
+            fmt_ci_of(r, "vs_random", 3),
             f"{r['switches_per_robot_h']:.2f}",
             settle_text(r),
         ]
@@ -396,7 +365,7 @@ def preset_section(
             "",
             f"Model optimum: {described} = {model.performance(optimum):.4f} per robot per 10 s.",
             "The start's allocation (the reset spreads the robots evenly over the circuits, in an "
-            f"order drawn from the seed) is worth {_ci(start, 'start_value_fraction', 3)} of the "
+            f"order drawn from the seed) is worth {fmt_ci_of(start, 'start_value_fraction', 3)} of the "
             "optimum by the model: that much of every allocator's score the reset hands it.",
             "",
             markdown_table(header, rows),

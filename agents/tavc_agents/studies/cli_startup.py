@@ -11,32 +11,28 @@ import subprocess
 import sys
 import time
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.provenance import run_metadata
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions
+from tavc_agents.experiments.study import Outcome, StudySettings
+from tavc_agents.studies.common import at_least, refuse_invalid
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The start-up benchmark's settings (its command line)."""
+
+    reference: ClassVar = "cli_startup"
+    recorded_fields: ClassVar = "repeats"
 
     repeats: int = 20
     """timed runs of each command (>= 2, for intervals)"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not isinstance(self.repeats, int) or isinstance(self.repeats, bool) or self.repeats < 2:
-            raise ValueError(f"repeats = {self.repeats!r} is invalid; allowed: an integer >= 2")
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / "cli_startup"
-
-    def recorded(self) -> dict[str, Any]:
-        return {"repeats": self.repeats}
+        refuse_invalid(self, [("repeats", at_least(self.repeats, 2), "an integer >= 2")])
 
 
 def commands() -> dict[str, list[str]]:

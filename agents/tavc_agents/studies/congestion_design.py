@@ -51,8 +51,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -61,11 +60,12 @@ from tavc_agents.analysis.elasticity import Elasticity, elasticity, seed_tables
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.analysis.stats import ratio_ci
 from tavc_agents.experiments.measurement import two_circuit_allocation
-from tavc_agents.experiments.provenance import run_recorded
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.studies import interference as study
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.common import at_least, positive, refuse_invalid, replace
 from tavc_agents.studies.elasticity import BOOT_SEED, elasticity_jobs
 from tavc_env import ArenaConfig, make_config
+from tavc_env._validation import is_number
 
 GOVERNORS_M = (0.0, 0.56, 1.06, 1.56, 2.56)
 LOADING_S = (4.0, 20.0, 40.0)
@@ -124,8 +124,12 @@ RHO_TARGET = 1.15
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The design search's settings (its command line)."""
+
+    quick_reference_apart: ClassVar = False
+    recorded_as_text: ClassVar = True
+    recorded_fields: ClassVar = "seeds=n_seeds hours knee candidates=names quick"
 
     seeds: int | None = None
     """seeds per candidate (default: 3 in the first two searches, 5 in the passing search)"""
@@ -144,11 +148,11 @@ class Settings(SweepOptions):
         checks = [
             (
                 "seeds",
-                self.seeds is None or (isinstance(self.seeds, int) and self.seeds >= 2),
+                self.seeds is None or at_least(self.seeds, 2),
                 "an integer >= 2 (or None: the search's default)",
             ),
-            ("hours", math.isfinite(self.hours) and self.hours > 0, "> 0"),
-            ("knee", math.isfinite(self.knee) and self.knee >= 1, ">= 1"),
+            ("hours", positive(self.hours), "> 0"),
+            ("knee", is_number(self.knee) and self.knee >= 1, ">= 1"),
         ]
         refuse_invalid(self, checks)
 
@@ -167,19 +171,14 @@ class Settings(SweepOptions):
         candidates = SEARCHES[self.search]
         return candidates[::6] if self.quick else candidates
 
-    def reference_dir(self) -> Path:
-        suffix = "" if self.search == "governor_loading" else f"_{self.search}"
-        return RESULTS_DIR / f"congestion_design{suffix}"
+    @property
+    def names(self) -> list[str]:
+        """The candidates' names."""
+        return [c.name for c in self.candidates()]
 
-    def recorded(self) -> dict[str, Any]:
-        s = self.sized()
-        return {
-            "seeds": str(s.n_seeds),
-            "hours": str(s.hours),
-            "knee": str(s.knee),
-            "candidates": str([c.name for c in s.candidates()]),
-            "quick": str(s.quick),
-        }
+    def reference_name(self) -> str:
+        suffix = "" if self.search == "governor_loading" else f"_{self.search}"
+        return f"congestion_design{suffix}"
 
 
 def knee_jobs(c: Candidate, seeds: Sequence[int], hours: float) -> list[study.Job]:
@@ -420,16 +419,7 @@ def run(settings: Settings) -> Outcome:
     seeds = list(range(s.n_seeds))
     jobs = [j for c in s.candidates() for j in knee_jobs(c, seeds, s.hours)]
     jobs += [j for c in s.candidates() for j in cross_jobs(c, seeds, s.hours)]
-    results, provenance = run_recorded(
-        jobs,
-        study.RUNS,
-        out / "runs",
-        out,
-        s.recorded(),
-        workers=s.workers,
-        backend=s.backend,
-        wall_of=lambda result: 0.0,
-    )
+    results, provenance = s.run_jobs(jobs, study.RUNS, "runs", wall_of=lambda result: 0.0)
     rows = []
     for c in s.candidates():
         mine = [

@@ -24,12 +24,11 @@ Trials are saved as they finish under `<out>/trials/` and reused by a rerun.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -37,8 +36,10 @@ from tavc_agents.analysis.measures import TrialMeasures, measure
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, run_trials
+from tavc_agents.studies.common import at_least, choices, positive, refuse_invalid, replace
+from tavc_env._validation import is_number
 from tavc_env.config import ARENA_REGIMES
 
 REGIMES = ARENA_REGIMES  # also shipped as presets dahl2004, dahl2004_competence, ...
@@ -47,8 +48,15 @@ Group = tuple[str, str]  # (regime, condition)
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The differentiation study's settings (its command line)."""
+
+    reference: ClassVar = "differentiation"
+    quick_sizes: ClassVar = {"trials": 2, "convergence_h": 0.3, "measured_h": 0.2}
+    recorded_fields: ClassVar = (
+        "regimes=regime_list temperatures=temperature_list trials convergence_h measured_h "
+        "init seed"
+    )
 
     regimes: str = ",".join(REGIMES)
     """comma-separated subset of the arena regimes stations, competence, light_stations"""
@@ -69,59 +77,43 @@ class Settings(SweepOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        unknown = [r for r in self.regime_list if r not in REGIMES]
-        if unknown or not self.regime_list:
-            raise ValueError(
-                f"regimes = {self.regimes!r} is invalid; allowed: a comma-separated subset of "
-                f"{', '.join(REGIMES)}"
-            )
+        choices(self, "regimes", REGIMES)  # an unknown regime is refused
         try:
             temperatures = self.temperature_list
         except ValueError:
             temperatures = []
-        if not temperatures or any(not (math.isfinite(t) and t > 0) for t in temperatures):
-            raise ValueError(
-                f"temperatures = {self.temperatures!r} is invalid; allowed: finite numbers > 0, "
-                "comma-separated"
-            )
-        if not isinstance(self.trials, int) or self.trials < 1:
-            raise ValueError(f"trials = {self.trials!r} is invalid; allowed: an integer >= 1")
-        for name, low in (("convergence_h", 0.0), ("measured_h", 0.0)):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= low) or (name == "measured_h" and value == 0):
-                raise ValueError(f"{name} = {value!r} is invalid; allowed: a finite number > 0")
+        refuse_invalid(
+            self,
+            [
+                (
+                    "temperatures",
+                    bool(temperatures) and all(positive(t) for t in temperatures),
+                    "finite numbers > 0, comma-separated",
+                ),
+                ("trials", at_least(self.trials, 1), "an integer >= 1"),
+                (
+                    "convergence_h",
+                    is_number(self.convergence_h) and self.convergence_h >= 0,
+                    "a finite number >= 0",
+                ),
+                ("measured_h", positive(self.measured_h), "a finite number > 0"),
+            ],
+        )
 
     @property
     def regime_list(self) -> list[str]:
-        return [r.strip() for r in self.regimes.split(",") if r.strip()]
+        return choices(self, "regimes", REGIMES)
 
     @property
     def temperature_list(self) -> list[float]:
         return [float(t) for t in self.temperatures.split(",") if t.strip()]
 
     def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
+        """These settings with `--quick`'s sizes applied: also only the first two temperatures."""
         if not self.quick:
             return self
         first_two = ",".join(str(t) for t in self.temperature_list[:2])
-        return dataclasses.replace(
-            self, trials=2, convergence_h=0.3, measured_h=0.2, temperatures=first_two
-        )
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / ("differentiation_quick" if self.quick else "differentiation")
-
-    def recorded(self) -> dict[str, Any]:
-        s = self.sized()
-        return {
-            "regimes": s.regime_list,
-            "temperatures": s.temperature_list,
-            "trials": s.trials,
-            "convergence_h": s.convergence_h,
-            "measured_h": s.measured_h,
-            "init": s.init,
-            "seed": s.seed,
-        }
+        return replace(super().sized(), temperatures=first_two)
 
 
 def _label(value: float) -> str:
@@ -179,7 +171,7 @@ def run(settings: Settings) -> Outcome:
     out.mkdir(parents=True, exist_ok=True)
     trial_specs = specs(settings)
     print(f"{len(trial_specs)} trials; results in {out}", flush=True)
-    results, provenance = run_trials(trial_specs, out, settings, settings.recorded())
+    results, provenance = settings.run_trials(trial_specs)
     groups: dict[Group, list[TrialMeasures]] = {}
     for spec in trial_specs:
         group = (str(spec.tags["regime"]), str(spec.tags["condition"]))

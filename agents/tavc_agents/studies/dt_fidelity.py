@@ -9,8 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -20,10 +19,10 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.estimation import measured_rate
 from tavc_agents.experiments.measurement import FixedAllocation, run_fixed, two_circuit_allocation
-from tavc_agents.experiments.provenance import run_recorded
 from tavc_agents.experiments.runner import run_trial
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.common import at_least, positive, refuse_invalid
 from tavc_env import make_config
 
 HOMOG = "dahl2004_homogeneous"
@@ -32,8 +31,14 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The time-step study's settings (its command line)."""
+
+    reference: ClassVar = "dt_fidelity"
+    quick_reference_apart: ClassVar = False
+    quick_sizes: ClassVar = {"seeds": 2, "hours": 0.3}
+    recorded_as_text: ClassVar = True
+    recorded_fields: ClassVar = "dts seeds hours tolerance out=out_text quick backend"
 
     dts: tuple[float, ...] = (0.05, 0.1, 0.2, 0.25)
     """physics steps to compare (s); the finest is the reference"""
@@ -49,9 +54,9 @@ class Settings(SweepOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
         checks = [
-            ("seeds", isinstance(self.seeds, int) and self.seeds >= 2, ">= 2 (for intervals)"),
-            ("hours", math.isfinite(self.hours) and self.hours > 0, "> 0"),
-            ("tolerance", math.isfinite(self.tolerance) and self.tolerance > 0, "> 0"),
+            ("seeds", at_least(self.seeds, 2), ">= 2 (for intervals)"),
+            ("hours", positive(self.hours), "> 0"),
+            ("tolerance", positive(self.tolerance), "> 0"),
             ("dts", len(self.dts) >= 1, "one or more steps"),
         ]
         refuse_invalid(self, checks)
@@ -60,27 +65,6 @@ class Settings(SweepOptions):
                 make_config("dahl2004", dt=dt)
             except ValueError as error:
                 raise ValueError(f"dts = {list(self.dts)!r} is invalid: {error}") from None
-
-    def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
-        return replace(self, seeds=2, hours=0.3) if self.quick else self
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / "dt_fidelity"
-
-    def recorded(self) -> dict[str, Any]:
-        """What the report records as the settings (as text; the sizes `--quick` applies
-        included)."""
-        s = self.sized()
-        return {
-            "dts": str(list(s.dts)),
-            "seeds": str(s.seeds),
-            "hours": str(s.hours),
-            "tolerance": str(s.tolerance),
-            "out": str(s.out_dir()),
-            "quick": str(s.quick),
-            "backend": str(s.backend),
-        }
 
 
 @dataclass(frozen=True)
@@ -255,16 +239,8 @@ def run(settings: Settings) -> Outcome:
     out = settings.out_dir()
     s = settings.sized()
     jobs = make_jobs(s)
-    jobs_dir = out / "cache"
-    results, provenance = run_recorded(
-        jobs,
-        RUNS,
-        jobs_dir,
-        jobs_dir,  # the provenance of the runs stays with them
-        settings.recorded(),
-        workers=settings.workers,
-        backend=settings.backend,
-    )
+    # the provenance of the runs stays with them
+    results, provenance = settings.run_jobs(jobs, RUNS, "cache", provenance_in="cache")
     seeds = list(range(s.seeds))
     values = {dt: per_seed_values(results, jobs, dt, seeds) for dt in sorted(s.dts)}
     rows, passes = compare(values, s.tolerance)

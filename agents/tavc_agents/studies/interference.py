@@ -13,7 +13,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -24,17 +24,16 @@ from tavc_agents.analysis.reports import Report, fmt_ci, have_matplotlib, markdo
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.elasticity import FAST, PER_CLASS, SLOW
 from tavc_agents.experiments.measurement import FixedAllocation, run_fixed, two_circuit_allocation
-from tavc_agents.experiments.provenance import run_recorded
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs
 from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
     Overrides,
-    SweepOptions,
     arena_overrides,
+    at_least,
+    positive,
     refuse_invalid,
-    replace,
 )
+from tavc_env._validation import is_number
 
 HOMOG = "dahl2004_homogeneous"
 HETERO = "dahl2004"
@@ -51,8 +50,14 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The interference benchmark's settings (its command line)."""
+
+    quick_sizes: ClassVar = {"seeds": 2, "hours": 0.12, "warmup_min": 0.5, "skip_first": 1}
+    recorded_fields: ClassVar = (
+        "seeds=seed_list hours warmup_min skip_first switch_every workers "
+        "arena_overrides=sorted_overrides"
+    )
 
     preset: str = HETERO
     """the arena: a preset with three fast (0.30 m/s) and three slow (0.20 m/s) robots, whose team
@@ -77,13 +82,13 @@ class Settings(SweepOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
         checks = [
-            ("seeds", isinstance(self.seeds, int) and self.seeds >= 1, "an integer >= 1"),
-            ("hours", math.isfinite(self.hours) and self.hours > 0, "> 0"),
-            ("warmup_min", math.isfinite(self.warmup_min) and self.warmup_min >= 0, ">= 0"),
-            ("skip_first", isinstance(self.skip_first, int) and self.skip_first >= 0, ">= 0"),
+            ("seeds", at_least(self.seeds, 1), "an integer >= 1"),
+            ("hours", positive(self.hours), "> 0"),
+            ("warmup_min", is_number(self.warmup_min) and self.warmup_min >= 0, ">= 0"),
+            ("skip_first", at_least(self.skip_first, 0), ">= 0"),
             (
                 "switch_every",
-                isinstance(self.switch_every, int) and self.switch_every >= 2,
+                at_least(self.switch_every, 2),
                 "an integer >= 2 (a block needs own-circuit tasks to compare with)",
             ),
         ]
@@ -127,29 +132,14 @@ class Settings(SweepOptions):
     def seed_list(self) -> list[int]:
         return list(range(self.seeds))
 
-    def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
-        if not self.quick:
-            return self
-        return replace(self, seeds=2, hours=0.12, warmup_min=0.5, skip_first=1)
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR
+    @property
+    def sorted_overrides(self) -> dict[str, Any]:
+        return dict(self.arena)
 
     def recorded(self) -> dict[str, Any]:
-        """What the report records as the settings (the sizes `--quick` applies included)."""
-        s = self.sized()
-        preset = {} if s.preset == HETERO else {"preset": s.preset}  # (not recorded before)
-        return {
-            **preset,
-            "seeds": s.seed_list,
-            "hours": s.hours,
-            "warmup_min": s.warmup_min,
-            "skip_first": s.skip_first,
-            "switch_every": s.switch_every,
-            "workers": s.workers,
-            "arena_overrides": dict(s.arena),
-        }
+        # the preset only when it is not the default: earlier reports did not record it
+        preset = {} if self.preset == HETERO else {"preset": self.preset}
+        return {**preset, **super().recorded()}
 
 
 # -- runs ---------------------------------------------------------------------------------------
@@ -773,16 +763,9 @@ def run(settings: Settings) -> Outcome:
     out.mkdir(parents=True, exist_ok=True)
     s = settings.sized()
     jobs = make_jobs(s)
-    jobs_dir = out / "cache" / "interference"
-    results, provenance = run_recorded(
-        jobs,
-        RUNS,
-        jobs_dir,
-        jobs_dir,  # the provenance of these runs stays with them (`out` may be shared)
-        settings.recorded(),
-        workers=settings.workers,
-        backend=settings.backend,
-        wall_of=_run_wall,
+    jobs_dir = Path("cache", "interference")  # its provenance with it (`out` may be shared)
+    results, provenance = settings.run_jobs(
+        jobs, RUNS, jobs_dir, provenance_in=jobs_dir, wall_of=_run_wall
     )
     rows = [r for job in jobs for r in results[job_key(job)]["rows"]]
     runs_csv = out / "interference_runs.csv"

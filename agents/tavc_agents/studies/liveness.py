@@ -25,13 +25,11 @@ delivery in a trial where the detector found no jam is an *unreported* jam: the 
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import stats
@@ -39,18 +37,11 @@ from scipy import stats
 import tavc_env
 from tavc_agents.analysis.reports import Report, fmt, markdown_table
 from tavc_agents.experiments.arenas import arena_config, random_arenas
-from tavc_agents.experiments.provenance import run_recorded
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import run_trial
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
-    SweepOptions,
-    at_least,
-    positive,
-    refuse_invalid,
-)
+from tavc_agents.studies.common import at_least, positive, refuse_invalid
 from tavc_env.config import ArenaConfig, Robot
 from tavc_env.engine.simulation import JAM_MOTION_M, JAM_WINDOW_S
 
@@ -64,8 +55,18 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The liveness study's settings (its command line)."""
+
+    reference: ClassVar = "liveness"
+    quick_sizes: ClassVar = {
+        **{"hours": 0.05, "seeds": 1, "teams": (3, 6), "per_circuit": (3, 24), "arenas": 3},
+        **{"random_hours": 0.05, "random_seeds": 1},
+    }
+    recorded_fields: ClassVar = (
+        "hours seeds=seed_list teams per_circuit arenas arena_seed random_hours "
+        "random_seeds=random_seed_list max_gap_min"
+    )
 
     hours: float = 4.0
     """simulated hours per trial of the dahl2004 and lanes arms"""
@@ -121,38 +122,13 @@ class Settings(SweepOptions):
         ]
         refuse_invalid(self, checks)
 
-    def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
-        if not self.quick:
-            return self
-        return dataclasses.replace(
-            self,
-            hours=0.05,
-            seeds=1,
-            teams=(3, 6),
-            per_circuit=(3, 24),
-            arenas=3,
-            random_hours=0.05,
-            random_seeds=1,
-        )
+    @property
+    def seed_list(self) -> list[int]:
+        return list(range(self.seed0, self.seed0 + self.seeds))
 
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / ("liveness_quick" if self.quick else "liveness")
-
-    def recorded(self) -> dict[str, Any]:
-        """What the report records as the settings (the sizes `--quick` applies included)."""
-        s = self.sized()
-        return {
-            "hours": s.hours,
-            "seeds": list(range(s.seed0, s.seed0 + s.seeds)),
-            "teams": list(s.teams),
-            "per_circuit": list(s.per_circuit),
-            "arenas": s.arenas,
-            "arena_seed": s.arena_seed,
-            "random_hours": s.random_hours,
-            "random_seeds": list(range(s.seed0, s.seed0 + s.random_seeds)),
-            "max_gap_min": s.max_gap_min,
-        }
+    @property
+    def random_seed_list(self) -> list[int]:
+        return list(range(self.seed0, self.seed0 + self.random_seeds))
 
 
 # -- one trial ----------------------------------------------------------------------------------
@@ -416,14 +392,6 @@ def _team_order(key: tuple[Any, ...]) -> tuple[int, int]:
     return (ARMS.index(arm), int(str(team).split("-")[0]))
 
 
-@dataclass
-class LivenessOutcome(Outcome):
-    """The outcome, with the trials where a robot went longer than the limit without a delivery
-    while the detector found no jam (unreported jams: the study fails)."""
-
-    failed: list[Row] = field(default_factory=list)
-
-
 def verdict_lines(rows: Sequence[Row], overall: Row, s: Settings, wall_s: float) -> list[str]:
     worst = max(rows, key=lambda r: r["longest_gap_s"])
     unreported = [r for r in rows if r["unreported"]]
@@ -555,20 +523,16 @@ def summary(
     }
 
 
-def run(settings: Settings) -> LivenessOutcome:
+def run(settings: Settings) -> Outcome:
     """Run (or resume) every trial, then write the report; the outcome lists the trials with an
     unreported jam."""
     out = settings.out_dir()
     s = settings.sized()
     jobs, drawn = trials(settings)
-    done, provenance = run_recorded(
+    done, provenance = settings.run_jobs(
         jobs,
         RUNS,
-        out / "trials",
-        out,
-        settings.recorded(),
-        workers=settings.workers,
-        backend=settings.backend,
+        "trials",
         wall_of=lambda result: float(result["wall_s"]),
         progress_bar=not s.quiet,
     )
@@ -587,14 +551,14 @@ def run(settings: Settings) -> LivenessOutcome:
     written = report.write(out, provenance)
     start = body.index("## Verdict") + 2
     text = "\n".join([*body[start : start + 5], f"wrote {out / 'liveness.md'}"])
-    return LivenessOutcome(out, written, text, [r for r in rows if r["unreported"]])
+    return Outcome(out, written, text, failure_lines([r for r in rows if r["unreported"]]))
 
 
-def failure_lines(outcome: LivenessOutcome) -> list[str]:
+def failure_lines(unreported: Sequence[Row]) -> list[str]:
     """One line per trial with an unreported jam."""
     return [
         f"FAIL: trial {r['key']}: robot {r['gap_robot']} went {r['longest_gap_s'] / 60:.1f} "
         f"simulated minutes without a delivery ({r['gap_from_s']:.0f}-{r['gap_to_s']:.0f} s) "
         "and the detector found no jam"
-        for r in outcome.failed
+        for r in unreported
     ]

@@ -13,16 +13,16 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 import tavc_env
 from tavc_agents.analysis.reports import CsvAppender, Report, fmt_ci, markdown_table
 from tavc_agents.experiments.measurement import SpacingMonitor
-from tavc_agents.experiments.provenance import run_recorded
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.common import at_least, positive, refuse_invalid
 from tavc_env.engine.navigation import STUCK_PATIENCE_S
 from tavc_env.engine.tasks import PHASE_NAMES, Mode, Phase
 from tavc_env.env import completed_task_s
@@ -34,8 +34,11 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The long-run check's settings (its command line)."""
+
+    quick_sizes: ClassVar = {"hours": 0.25, "seeds": 1}
+    recorded_fields: ClassVar = "preset hours seeds=seed_list"
 
     preset: str = PRESET
     """the arena (any preset)"""
@@ -55,29 +58,17 @@ class Settings(SweepOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
         checks = [
-            ("seeds", isinstance(self.seeds, int) and self.seeds >= 1, "an integer >= 1"),
-            ("seed0", isinstance(self.seed0, int) and self.seed0 >= 0, "an integer >= 0"),
-            ("hours", math.isfinite(self.hours) and self.hours > 0, "> 0"),
-            ("max_gap_min", math.isfinite(self.max_gap_min) and self.max_gap_min > 0, "> 0"),
+            ("seeds", at_least(self.seeds, 1), "an integer >= 1"),
+            ("seed0", at_least(self.seed0, 0), "an integer >= 0"),
+            ("hours", positive(self.hours), "> 0"),
+            ("max_gap_min", positive(self.max_gap_min), "> 0"),
             ("preset", self.preset in tavc_env.PRESETS, f"one of {sorted(tavc_env.PRESETS)}"),
         ]
         refuse_invalid(self, checks)
 
-    def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
-        return replace(self, hours=0.25, seeds=1) if self.quick else self
-
     @property
     def seed_list(self) -> list[int]:
         return list(range(self.seed0, self.seed0 + self.seeds))
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR
-
-    def recorded(self) -> dict[str, Any]:
-        """What the report records as the settings (the sizes `--quick` applies included)."""
-        s = self.sized()
-        return {"preset": s.preset, "hours": s.hours, "seeds": s.seed_list}
 
 
 # -- one seed -----------------------------------------------------------------------------------
@@ -252,13 +243,6 @@ RUNS = json_jobs(run_long, lambda job: f"seed{job.seed}_{job.hours:g}h", unit="s
 
 
 # -- report -------------------------------------------------------------------------------------
-@dataclass
-class LongRunOutcome(Outcome):
-    """The outcome, with the robots whose longest gap exceeded the limit (the check fails)."""
-
-    failed: list[Row] = field(default_factory=list)
-
-
 def verdict_lines(
     results: Sequence[dict[str, Any]], worst: Row, failed: bool, s: Settings, wall_s: float
 ) -> list[str]:
@@ -387,22 +371,19 @@ def summary(results: Sequence[dict[str, Any]], worst: Row, failed: bool, s: Sett
     }
 
 
-def run(settings: Settings) -> LongRunOutcome:
+def run(settings: Settings) -> Outcome:
     """Run (or resume) every seed, then write the per-robot report; the outcome lists the robots
     whose longest gap exceeded `max_gap_min`."""
     out = settings.out_dir()
     out.mkdir(parents=True, exist_ok=True)
     s = settings.sized()
     jobs = [LongRun(seed, s.hours, str(out), s.quiet, s.preset) for seed in s.seed_list]
-    jobs_dir = out / "cache" / "long_run"
-    done, provenance = run_recorded(
+    jobs_dir = Path("cache", "long_run")  # its provenance with it (`out` may be shared)
+    done, provenance = settings.run_jobs(
         jobs,
         RUNS,
         jobs_dir,
-        jobs_dir,  # the provenance of these runs stays with them (`out` may be shared)
-        settings.recorded(),
-        workers=settings.workers,
-        backend=settings.backend,
+        provenance_in=jobs_dir,
         wall_of=lambda result: float(result["wall_s"]),
         progress_bar=not s.quiet,
     )
@@ -420,14 +401,14 @@ def run(settings: Settings) -> LongRunOutcome:
     )
     written = report.write(out, provenance)
     text = "\n".join([*body[6:12], f"wrote {out / 'long_run.md'}"])
-    return LongRunOutcome(out, written, text, failed)
+    return Outcome(out, written, text, failure_lines(failed))
 
 
-def failure_lines(outcome: LongRunOutcome) -> list[str]:
+def failure_lines(failed: Sequence[Row]) -> list[str]:
     """One line per robot that went longer than the limit without completing a task."""
     return [
         f"FAIL: robot {r['robot']} (seed {r['seed']}) went {r['longest_gap_s'] / 60:.1f} "
         f"simulated minutes without completing a task ({r['gap_kind']}, "
         f"{r['gap_from_s']:.0f}-{r['gap_to_s']:.0f} s)"
-        for r in outcome.failed
+        for r in failed
     ]

@@ -27,14 +27,15 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from scipy import stats
 
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
-from tavc_agents.experiments.provenance import run_metadata, run_recorded
+from tavc_agents.experiments.provenance import run_metadata
+from tavc_agents.experiments.study import RESULTS_DIR, Outcome
 from tavc_agents.experiments.sweep import run_jobs
 from tavc_agents.experiments.twin_batch import run_batch
 from tavc_agents.model import (
@@ -45,13 +46,7 @@ from tavc_agents.model import (
     missing_model,
 )
 from tavc_agents.studies import regime_map as rm
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
-    at_least,
-    refuse_invalid,
-    replace,
-)
+from tavc_agents.studies.common import at_least, refuse_invalid
 from tavc_agents.studies.elasticity import measure_elasticity
 from tavc_agents.studies.twin_batch import learner_of
 from tavc_env import ArenaConfig
@@ -68,6 +63,15 @@ Row = dict[str, Any]
 @dataclass(frozen=True, kw_only=True)
 class Settings(rm.CellDesign):
     """The decisive test's settings (its command line); the twin's cell k draws from [seed, k]."""
+
+    quick_sizes: ClassVar = {
+        **rm.QUICK_DESIGN,
+        "twin_trials": 50,
+        "min_decisive": 3,
+        "max_decisive": 3,
+        "control_trials": 2,
+        "other_trials": 2,
+    }
 
     stage: Literal["predict", "test"] = "predict"
     """predict (twin only: the prediction and the plan) or test (the plan's physics trials)"""
@@ -108,47 +112,23 @@ class Settings(rm.CellDesign):
             ],
         )
 
-    def sized(self) -> Settings:
-        if not self.quick:
-            return self
-        return replace(
-            self,
-            twin_trials=50,
-            min_decisive=3,
-            max_decisive=3,
-            control_trials=2,
-            other_trials=2,
-            **rm.QUICK_DESIGN,
-        )
+    @property
+    def arena_sha(self) -> str:
+        return rm.digest(self.arena)
 
-    def reference_dir(self) -> Path:
-        name = "passing_prediction" if self.stage == "predict" else "passing"
-        return RESULTS_DIR / (f"{name}_quick" if self.quick else name)
+    @property
+    def prediction_name(self) -> str:
+        return Path(self.prediction).name
+
+    def reference_name(self) -> str:
+        return "passing_prediction" if self.stage == "predict" else "passing"
 
     def recorded(self) -> dict[str, Any]:
-        s = self.sized()
-        common = {
-            "stage": s.stage,
-            "arena": s.arena,
-            "arena_sha": rm.digest(s.arena),
-            "convergence_h": s.convergence_h,
-            "measured_h": s.measured_h,
-            "seed": s.seed,
-        }
-        if s.stage == "test":
-            return {**common, "prediction": Path(s.prediction).name}
-        return {
-            **common,
-            "twin_trials": s.twin_trials,
-            "min_decisive": s.min_decisive,
-            "max_decisive": s.max_decisive,
-            "control_trials": s.control_trials,
-            "other_trials": s.other_trials,
-            "e_seeds": s.e_seeds,
-            "e_hours": s.e_hours,
-            "table_seeds": s.table_seeds,
-            "table_hours": s.table_hours,
-        }
+        both = "stage arena arena_sha convergence_h measured_h seed"
+        if self.stage == "test":
+            return self.recorded_of(f"{both} prediction=prediction_name")
+        predict = "twin_trials min_decisive max_decisive control_trials other_trials"
+        return self.recorded_of(f"{both} {predict} e_seeds e_hours table_seeds table_hours")
 
 
 # -- stage 1: the prediction --------------------------------------------------------------------
@@ -510,15 +490,8 @@ def run_test(s: Settings) -> Outcome:
             "prediction of this arena as it is now"
         )
     jobs = test_jobs(s, trials)
-    results, provenance = run_recorded(
-        jobs,
-        rm.TRIALS,
-        out / "trials",
-        out,
-        s.recorded(),
-        workers=s.workers,
-        backend=s.backend,
-        wall_of=lambda result: float(result["wall_s"]),
+    results, provenance = s.run_jobs(
+        jobs, rm.TRIALS, "trials", wall_of=lambda result: float(result["wall_s"])
     )
     records: dict[str, list[dict[str, Any]]] = {}
     for job in jobs:

@@ -31,7 +31,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from scipy import stats
@@ -42,19 +42,12 @@ from tavc_agents.analysis.measures import measure
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
-from tavc_agents.experiments.provenance import run_metadata, run_recorded
+from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import env_arguments, run_trial
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import arena_digest, json_jobs, run_jobs, saved_results
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
-    SweepOptions,
-    at_least,
-    positive,
-    refuse_invalid,
-    replace,
-)
+from tavc_agents.studies.common import at_least, choices, positive, refuse_invalid, replace
 from tavc_agents.studies.elasticity import measure_elasticity
 from tavc_env import metrics
 from tavc_env.twin import InterferenceTables, build_tables
@@ -119,7 +112,7 @@ QUICK_DESIGN: Mapping[str, Any] = {
 
 
 @dataclass(frozen=True, kw_only=True)
-class CellDesign(SweepOptions):
+class CellDesign(StudySettings):
     """How an arena's cells are made: the trials' periods and seeds, and the runs that measure the
     arena's e and twin tables (the regime map's, and the passing arena's decisive test's)."""
 
@@ -158,6 +151,13 @@ class CellDesign(SweepOptions):
 class Settings(CellDesign):
     """The regime map's settings (its command line)."""
 
+    reference: ClassVar = "regime_map"
+    quick_sizes: ClassVar = {**QUICK_DESIGN, "trials": 2, "decisive_trials": 3}
+    recorded_fields: ClassVar = (
+        "arenas=arena_list trials decisive_trials decisive_cells twin_trials convergence_h "
+        "measured_h e_seeds e_hours table_seeds table_hours seed"
+    )
+
     arenas: str = ",".join(MAPPED)
     """comma-separated subset of the arenas dahl2004, dahl2004_instant_docks, dahl2004_competence,
     dahl2004_light_stations, dahl2004_congestion, dahl2004_bays"""
@@ -176,12 +176,7 @@ class Settings(CellDesign):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        unknown = [a for a in self.arena_list if a not in ARENAS]
-        if unknown or not self.arena_list:
-            raise ValueError(
-                f"arenas = {self.arenas!r} is invalid; allowed: a comma-separated subset of "
-                f"{', '.join(ARENAS)}"
-            )
+        choices(self, "arenas", ARENAS)  # an unknown arena is refused
         checks = [
             ("trials", at_least(self.trials, 2), "an integer >= 2"),
             ("decisive_trials", at_least(self.decisive_trials, 2), "an integer >= 2"),
@@ -191,39 +186,16 @@ class Settings(CellDesign):
 
     @property
     def arena_list(self) -> list[str]:
-        return [a.strip() for a in self.arenas.split(",") if a.strip()]
+        return choices(self, "arenas", ARENAS)
+
+    @property
+    def decisive_cells(self) -> list[str]:
+        return [f"{a} {softmax_condition(t)}" for a, t in DECISIVE]
 
     def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
-        if not self.quick:
-            return self
-        return replace(
-            self,
-            trials=2,
-            decisive_trials=3,
-            twin_trials=min(self.twin_trials, 2),
-            **QUICK_DESIGN,
-        )
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / ("regime_map_quick" if self.quick else "regime_map")
-
-    def recorded(self) -> dict[str, Any]:
-        s = self.sized()
-        return {
-            "arenas": s.arena_list,
-            "trials": s.trials,
-            "decisive_trials": s.decisive_trials,
-            "decisive_cells": [f"{a} {softmax_condition(t)}" for a, t in DECISIVE],
-            "twin_trials": s.twin_trials,
-            "convergence_h": s.convergence_h,
-            "measured_h": s.measured_h,
-            "e_seeds": s.e_seeds,
-            "e_hours": s.e_hours,
-            "table_seeds": s.table_seeds,
-            "table_hours": s.table_hours,
-            "seed": s.seed,
-        }
+        """These settings with `--quick`'s sizes applied (and at most 2 twin trials)."""
+        sized = super().sized()
+        return replace(sized, twin_trials=min(self.twin_trials, 2)) if self.quick else sized
 
     def trials_in(self, arena: str, condition: str) -> int:
         decisive = {(a, softmax_condition(t)) for a, t in DECISIVE}
@@ -712,15 +684,8 @@ def run(settings: Settings) -> Outcome:
             settings=s.recorded(), interim=True, trials_saved=len(results), trials=len(order)
         )
     else:
-        results, provenance = run_recorded(
-            order,
-            TRIALS,
-            out / "trials",
-            out,
-            s.recorded(),
-            workers=s.workers,
-            backend=s.backend,
-            wall_of=lambda result: float(result["wall_s"]),
+        results, provenance = s.run_jobs(
+            order, TRIALS, "trials", wall_of=lambda result: float(result["wall_s"])
         )
     records: dict[tuple[str, str, Engine], list[dict[str, Any]]] = {}
     for job in order:

@@ -24,8 +24,8 @@ import tyro
 
 from tavc_agents.experiments.files import read_record
 from tavc_agents.experiments.runner import Event, TrialResult
+from tavc_agents.experiments.study import Outcome
 from tavc_agents.experiments.sweep import TrialSpec, run_spec
-from tavc_agents.studies.common import Outcome
 
 IGNORED = ("wall_s", "spec")  # wall-clock time; the spec itself is what is re-run
 

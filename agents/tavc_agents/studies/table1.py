@@ -30,7 +30,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -38,20 +38,24 @@ from tavc_agents.analysis.measures import TrialMeasures, measure
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, mean_sd, ratio_ci, welch
-from tavc_agents.experiments.sweep import TagValue, TrialSpec
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
+from tavc_agents.experiments.study import (
     Outcome,
-    Overrides,
-    SweepOptions,
-    arena_overrides,
+    StudySettings,
     compare_tables,
     differing_cells,
     recorded_settings,
+)
+from tavc_agents.experiments.sweep import TagValue, TrialSpec
+from tavc_agents.studies.common import (
+    Overrides,
+    arena_overrides,
+    at_least,
+    choices,
+    positive,
     refuse_invalid,
-    run_trials,
 )
 from tavc_env import PRESETS, make_config, metrics
+from tavc_env._validation import is_number
 
 # The paper's Table 1 (mu_a, s_a: modified TAVC; mu_r, s_r: random; T: Equation 3).
 PAPER_TABLE1: dict[tuple[int, int], tuple[float, float, float, float, float]] = {
@@ -77,8 +81,13 @@ CONDITION_ORDER = ("softmax", "epsilon", "random")
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The Table 1 reproduction's settings (its command line)."""
+
+    quick_sizes: ClassVar = {"trials": 2, "convergence_h": 0.3, "measured_h": 0.2}
+    recorded_fields: ClassVar = (
+        "preset trials convergence_h measured_h init temperature epsilon seed overrides"
+    )
 
     preset: str = "dahl2004"
     """arena preset"""
@@ -107,57 +116,26 @@ class Settings(SweepOptions):
         super().__post_init__()
         checks = [
             ("preset", self.preset in PRESETS, f"one of {sorted(PRESETS)}"),
-            ("trials", isinstance(self.trials, int) and self.trials >= 1, "an integer >= 1"),
-            ("convergence_h", _finite(self.convergence_h) and self.convergence_h >= 0, ">= 0"),
-            ("measured_h", _finite(self.measured_h) and self.measured_h > 0, "> 0"),
-            ("temperature", _finite(self.temperature) and self.temperature > 0, "> 0"),
-            ("epsilon", _finite(self.epsilon) and 0 <= self.epsilon <= 1, "in [0, 1]"),
+            ("trials", at_least(self.trials, 1), "an integer >= 1"),
+            ("convergence_h", is_number(self.convergence_h) and self.convergence_h >= 0, ">= 0"),
+            ("measured_h", positive(self.measured_h), "> 0"),
+            ("temperature", positive(self.temperature), "> 0"),
+            ("epsilon", is_number(self.epsilon) and 0 <= self.epsilon <= 1, "in [0, 1]"),
         ]
         refuse_invalid(self, checks)
-        unknown = [c for c in self.chosen if c not in CONDITION_ORDER]
-        if unknown or not self.chosen:
-            raise ValueError(
-                f"conditions = {self.conditions!r} is invalid; allowed: a comma-separated subset "
-                f"of {', '.join(CONDITION_ORDER)}"
-            )
+        choices(self, "conditions", CONDITION_ORDER)  # an unknown condition is refused
         make_config(self.preset, **self.overrides)  # a bad arena is refused before any trial
 
     @property
     def chosen(self) -> list[str]:
-        return [c.strip() for c in self.conditions.split(",") if c.strip()]
+        return choices(self, "conditions", CONDITION_ORDER)
 
     @property
     def overrides(self) -> dict[str, Any]:
         return arena_overrides(self.set)
 
-    def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
-        if not self.quick:
-            return self
-        return dataclasses.replace(self, trials=2, convergence_h=0.3, measured_h=0.2)
-
-    def reference_dir(self) -> Path:
-        suffix = "_quick" if self.quick else ""
-        return RESULTS_DIR / f"table1_{self.preset}_{self.init}{suffix}"
-
-    def recorded(self) -> dict[str, Any]:
-        """What the report records as the settings (the sizes `--quick` applies included)."""
-        s = self.sized()
-        return {
-            "preset": s.preset,
-            "trials": s.trials,
-            "convergence_h": s.convergence_h,
-            "measured_h": s.measured_h,
-            "init": s.init,
-            "temperature": s.temperature,
-            "epsilon": s.epsilon,
-            "seed": s.seed,
-            "overrides": s.overrides,
-        }
-
-
-def _finite(x: float) -> bool:
-    return isinstance(x, (int, float)) and math.isfinite(x)
+    def reference_name(self) -> str:
+        return f"table1_{self.preset}_{self.init}"
 
 
 def labels(settings: Settings) -> dict[str, str]:
@@ -216,7 +194,7 @@ def run(settings: Settings) -> Outcome:
         f"{s.convergence_h + s.measured_h:g} simulated hours on {s.preset}; results in {out}",
         flush=True,
     )
-    results, provenance = run_trials(trial_specs, out, settings, settings.recorded())
+    results, provenance = settings.run_trials(trial_specs)
     by: dict[str, list[TrialMeasures]] = {c: [] for c in s.chosen}
     for spec in trial_specs:
         by[str(spec.tags["condition"])].append(measure(results[spec.key]))

@@ -25,11 +25,10 @@ from __future__ import annotations
 
 import itertools
 import json
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import stats
@@ -40,6 +39,7 @@ from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.estimation import circuit_of, group_of, group_specs, measured_rate
 from tavc_agents.experiments.files import write_text
 from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
 from tavc_agents.model import (
     Allocation,
@@ -49,19 +49,17 @@ from tavc_agents.model import (
     model_path,
     robot_circuits,
 )
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
-    SweepOptions,
-    refuse_invalid,
-    run_trials,
-)
+from tavc_agents.studies.common import at_least, positive, refuse_invalid
 from tavc_env import PRESETS, ArenaConfig, make_config
+from tavc_env._validation import is_number
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The model measurement's settings (its command line)."""
+
+    recorded_as_text: ClassVar = True
+    recorded_fields: ClassVar = "preset seeds warmup_min measured_h check_seeds top backend"
 
     preset: str = "dahl2004"
     """arena preset"""
@@ -80,42 +78,17 @@ class Settings(SweepOptions):
         super().__post_init__()
         checks = [
             ("preset", self.preset in PRESETS, f"one of {sorted(PRESETS)}"),
-            ("seeds", _count(self.seeds), "an integer >= 1"),
-            ("warmup_min", _finite(self.warmup_min) and self.warmup_min >= 0, ">= 0"),
-            ("measured_h", _finite(self.measured_h) and self.measured_h > 0, "> 0"),
-            ("check_seeds", _count(self.check_seeds), "an integer >= 1"),
-            ("top", _count(self.top), "an integer >= 1"),
+            ("seeds", at_least(self.seeds, 1), "an integer >= 1"),
+            ("warmup_min", is_number(self.warmup_min) and self.warmup_min >= 0, ">= 0"),
+            ("measured_h", positive(self.measured_h), "> 0"),
+            ("check_seeds", at_least(self.check_seeds, 1), "an integer >= 1"),
+            ("top", at_least(self.top, 1), "an integer >= 1"),
         ]
         refuse_invalid(self, checks)
 
-    def reference_dir(self) -> Path:
-        return model_dir(self.preset)
-
-    def recorded(self) -> dict[str, Any]:
-        """What the reports record as the settings (as text, as they always have)."""
-        return {
-            "preset": self.preset,
-            "seeds": str(self.seeds),
-            "warmup_min": str(float(self.warmup_min)),
-            "measured_h": str(float(self.measured_h)),
-            "check_seeds": str(self.check_seeds),
-            "top": str(self.top),
-            "backend": self.backend,
-        }
-
-
-def _count(x: int) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool) and x >= 1
-
-
-def _finite(x: float) -> bool:
-    return isinstance(x, (int, float)) and math.isfinite(x)
-
-
-def model_dir(preset: str) -> Path:
-    """Where the committed reports of the model of `preset` live (the model itself ships with the
-    package: `tavc_agents.model.REFERENCE_MODELS`)."""
-    return RESULTS_DIR / "tavc_model" / preset
+    def reference_name(self) -> str:
+        # the reports only: the model itself ships with the package (`model.REFERENCE_MODELS`)
+        return f"tavc_model/{self.preset}"
 
 
 def check_allocations(model: CompletionModel, top: int) -> list[Allocation]:
@@ -167,7 +140,7 @@ def run(settings: Settings) -> Outcome:
     warmup, measured = settings.warmup_min * 60.0, settings.measured_h * 3600.0
     specs = group_specs(config, range(settings.seeds), warmup, measured)
     print(f"measuring c for {len(specs)} group runs ({settings.preset})", flush=True)
-    results, meta = run_trials(specs, out / "cache" / "groups", settings, settings.recorded())
+    results, meta = settings.run_trials(specs, Path("cache", "groups"))
     model = model_from_runs(config, group_runs(specs, results))
     written = [write_csv_path(out / "group_runs.csv", group_rows(specs, results, config))]
     # The reference model is package data (the allocators' default, also in an installed wheel),
@@ -179,9 +152,7 @@ def run(settings: Settings) -> Outcome:
     allocations = check_allocations(model, settings.top)
     specs_checked = check_specs(settings, allocations)
     print(f"checking {len(allocations)} allocations in the full arena", flush=True)
-    checked, check_meta = run_trials(
-        specs_checked, out / "cache" / "check", settings, settings.recorded()
-    )
+    checked, check_meta = settings.run_trials(specs_checked, Path("cache", "check"))
     check_meta = {**check_meta, "model_wall_time_s": meta.get("wall_time_s")}
     rows = check_rows(model, allocations, specs_checked, checked)
     report = check_report(rows, settings)

@@ -24,16 +24,15 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import ExitStack
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import tavc_env
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.measurement import physics_floor, physics_replay, random_choice_run
 from tavc_agents.experiments.provenance import run_metadata
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_env.config import ArenaConfig
 
 SIZES = {6: None, 24: 8, 96: 32, 384: 128}  # robots -> lanes of scaled_config (None: dahl2004)
@@ -46,9 +45,13 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The throughput benchmark's settings (its command line). Each case runs in a process of
     its own on one core, one at a time, so `workers` can only be 1 and `backend` only local."""
+
+    reference: ClassVar = "throughput"
+    quick_reference_apart: ClassVar = False
+    recorded_fields: ClassVar = "sizes fixed_sizes interval_s repeats=repeat_count quick"
 
     sizes: tuple[int, ...] = (6, 24, 96)
     """team sizes (robots) with event-driven stepping, among 6, 24, 96, 384"""
@@ -97,18 +100,6 @@ class Settings(SweepOptions):
     def cases(self) -> list[tuple[int, float | None]]:
         """(robots, fixed interval or None for event-driven stepping), in the order they run."""
         return [(n, None) for n in self.sizes] + [(n, self.interval_s) for n in self.fixed_sizes]
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / "throughput"
-
-    def recorded(self) -> dict[str, Any]:
-        return {
-            "sizes": list(self.sizes),
-            "fixed_sizes": list(self.fixed_sizes),
-            "interval_s": self.interval_s,
-            "repeats": self.repeat_count,
-            "quick": self.quick,
-        }
 
 
 def config_for(robots: int, dt: float | None = None) -> ArenaConfig:
@@ -265,18 +256,7 @@ def build_report(rows: Sequence[Row], s: Settings) -> Report:
     return Report("throughput", "Throughput against its own physics", body, list(rows), summary)
 
 
-@dataclass
-class ThroughputOutcome(Outcome):
-    """The outcome, with the verdicts that missed their goal (the benchmark fails)."""
-
-    failed: list[str] = field(default_factory=list)
-
-
-def failure_lines(outcome: ThroughputOutcome) -> list[str]:
-    return [f"FAIL: {line}" for line in outcome.failed]
-
-
-def run(settings: Settings) -> ThroughputOutcome:
+def run(settings: Settings) -> Outcome:
     """Measure every case, then write the report."""
     out = settings.out_dir()
     provenance = run_metadata(settings=settings.recorded())
@@ -286,11 +266,11 @@ def run(settings: Settings) -> ThroughputOutcome:
     report = build_report(rows, settings)
     written = report.write(out, provenance)
     failed = [
-        f"{name} robots: {found['verdict']}"
+        f"FAIL: {name} robots: {found['verdict']}"
         for name, found in report.summary.items()
         if found["verdict"].startswith("FAIL") or not found["replay_exact"]
     ]
-    return ThroughputOutcome(out, written, f"{report.body}\nwrote {out / 'throughput.md'}", failed)
+    return Outcome(out, written, f"{report.body}\nwrote {out / 'throughput.md'}", failed)
 
 
 # -- profiling ----------------------------------------------------------------------------------

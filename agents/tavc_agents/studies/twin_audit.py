@@ -28,15 +28,16 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
-from tavc_agents.experiments.provenance import run_recorded
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs, run_jobs
 from tavc_agents.studies import regime_map
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.common import at_least, choices, positive, refuse_invalid
+from tavc_env._validation import is_number
 from tavc_env.twin import InterferenceTables, random_allocation_run
 
 Row = dict[str, Any]
@@ -45,8 +46,14 @@ VARIANTS: tuple[Variant, ...] = ("physics", "twin_tables", "twin_audited_switch"
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The twin audit's settings (its command line)."""
+
+    reference: ClassVar = "twin_audit"
+    quick_sizes: ClassVar = {"seeds": 2, "twin_seeds": 2, "hours": 0.5, "warmup_s": 300.0}
+    recorded_fields: ClassVar = (
+        "arenas=arena_list seeds twin_seeds hours warmup_s table_seeds table_hours"
+    )
 
     arenas: str = ",".join(regime_map.MAPPED)
     """comma-separated subset of the regime map's arenas"""
@@ -63,23 +70,14 @@ class Settings(SweepOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        unknown = [a for a in self.arena_list if a not in regime_map.ARENAS]
-        if unknown or not self.arena_list:
-            raise ValueError(
-                f"arenas = {self.arenas!r} is invalid; allowed: a comma-separated subset of "
-                f"{', '.join(regime_map.ARENAS)}"
-            )
+        choices(self, "arenas", regime_map.ARENAS)  # an unknown arena is refused
         checks = [
-            ("seeds", isinstance(self.seeds, int) and self.seeds >= 2, "an integer >= 2"),
-            (
-                "twin_seeds",
-                isinstance(self.twin_seeds, int) and self.twin_seeds >= 2,
-                "an integer >= 2",
-            ),
-            ("hours", math.isfinite(self.hours) and self.hours > 0, "a finite number > 0"),
+            ("seeds", at_least(self.seeds, 2), "an integer >= 2"),
+            ("twin_seeds", at_least(self.twin_seeds, 2), "an integer >= 2"),
+            ("hours", positive(self.hours), "a finite number > 0"),
             (
                 "warmup_s",
-                math.isfinite(self.warmup_s) and 0 <= self.warmup_s < self.hours * 3600.0,
+                is_number(self.warmup_s) and 0 <= self.warmup_s < self.hours * 3600.0,
                 "a number of seconds >= 0, shorter than the run",
             ),
         ]
@@ -87,7 +85,7 @@ class Settings(SweepOptions):
 
     @property
     def arena_list(self) -> list[str]:
-        return [a.strip() for a in self.arenas.split(",") if a.strip()]
+        return choices(self, "arenas", regime_map.ARENAS)
 
     @property
     def table_runs(self) -> tuple[tuple[int, ...], float]:
@@ -99,26 +97,13 @@ class Settings(SweepOptions):
         }
         return tuple(range(default["table_seeds"])), default["table_hours"]
 
-    def sized(self) -> Settings:
-        if not self.quick:
-            return self
-        return replace(self, seeds=2, twin_seeds=2, hours=0.5, warmup_s=300.0)
+    @property
+    def table_seeds(self) -> tuple[int, ...]:
+        return self.table_runs[0]
 
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / ("twin_audit_quick" if self.quick else "twin_audit")
-
-    def recorded(self) -> dict[str, Any]:
-        s = self.sized()
-        seeds, hours = s.table_runs
-        return {
-            "arenas": s.arena_list,
-            "seeds": s.seeds,
-            "twin_seeds": s.twin_seeds,
-            "hours": s.hours,
-            "warmup_s": s.warmup_s,
-            "table_seeds": list(seeds),
-            "table_hours": hours,
-        }
+    @property
+    def table_hours(self) -> float:
+        return self.table_runs[1]
 
 
 # -- jobs ---------------------------------------------------------------------------------------
@@ -352,9 +337,7 @@ def run(settings: Settings) -> Outcome:
         ]
 
     measured = jobs("physics", s.seeds) + jobs("twin_tables", s.twin_seeds)
-    results, provenance = run_recorded(
-        measured, AUDITS, out / "runs", out, s.recorded(), workers=s.workers, backend=s.backend
-    )
+    results, provenance = s.run_jobs(measured, AUDITS, "runs")
 
     def of(
         batch: Sequence[AuditRun], done: Mapping[str, Any]

@@ -22,20 +22,20 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 import tavc_env
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
-from tavc_agents.experiments.provenance import run_recorded
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import env_arguments, run_trial
+from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs, saved_results
 from tavc_agents.experiments.twin_batch import Learner, run_batch
 from tavc_agents.studies import regime_map
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, refuse_invalid, replace
+from tavc_agents.studies.common import at_least, refuse_invalid
 from tavc_env.twin import InterferenceTables
 
 Row = dict[str, Any]
@@ -54,8 +54,14 @@ def learner_of(condition: str) -> Learner:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The batched twin's check (its command line)."""
+
+    reference: ClassVar = "twin_batch"
+    quick_sizes: ClassVar = {"trials": 50, "speed_physics": 1, "speed_twin": 2}
+    recorded_fields: ClassVar = (
+        "trials seed speed_physics speed_twin periods_h regime_map_dir=regime_map_name"
+    )
 
     trials: int = 2000
     """batched twin trials per cell"""
@@ -75,18 +81,10 @@ class Settings(SweepOptions):
         refuse_invalid(
             self,
             [
-                ("trials", isinstance(self.trials, int) and self.trials >= 2, "an integer >= 2"),
-                ("seed", isinstance(self.seed, int) and self.seed >= 0, "an integer >= 0"),
-                (
-                    "speed_physics",
-                    isinstance(self.speed_physics, int) and self.speed_physics >= 1,
-                    "an integer >= 1",
-                ),
-                (
-                    "speed_twin",
-                    isinstance(self.speed_twin, int) and self.speed_twin >= 1,
-                    "an integer >= 1",
-                ),
+                ("trials", at_least(self.trials, 2), "an integer >= 2"),
+                ("seed", at_least(self.seed, 0), "an integer >= 0"),
+                ("speed_physics", at_least(self.speed_physics, 1), "an integer >= 1"),
+                ("speed_twin", at_least(self.speed_twin, 1), "an integer >= 1"),
                 (
                     "regime_map_dir",
                     (Path(self.regime_map_dir) / "twin_tables").is_dir(),
@@ -95,33 +93,19 @@ class Settings(SweepOptions):
             ],
         )
 
-    def sized(self) -> Settings:
-        if not self.quick:
-            return self
-        return replace(self, trials=50, speed_physics=1, speed_twin=2)
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / ("twin_batch_quick" if self.quick else "twin_batch")
-
     def regime_map_settings(self) -> regime_map.Settings:
         """The settings of the regime map compared with (its defaults, in its folder)."""
         return regime_map.Settings(out=Path(self.regime_map_dir))
 
+    @property
     def periods_h(self) -> tuple[float, float]:
         """The regime map's periods (those of the trials compared with)."""
         kept = self.regime_map_settings()
         return kept.convergence_h, kept.measured_h
 
-    def recorded(self) -> dict[str, Any]:
-        s = self.sized()
-        return {
-            "trials": s.trials,
-            "seed": s.seed,
-            "speed_physics": s.speed_physics,
-            "speed_twin": s.speed_twin,
-            "periods_h": list(s.periods_h()),
-            "regime_map_dir": Path(s.regime_map_dir).name,
-        }
+    @property
+    def regime_map_name(self) -> str:
+        return Path(self.regime_map_dir).name
 
 
 # -- jobs ---------------------------------------------------------------------------------------
@@ -237,7 +221,7 @@ def time_speed(s: Settings, tables: Mapping[str, Any]) -> Row:
     cell, timed one after the other in this process."""
     arena, condition = SPEED_CELL
     allocator, params = regime_map.CONDITIONS[condition]
-    convergence_h, measured_h = s.periods_h()
+    convergence_h, measured_h = s.periods_h
     twin_env = functools.partial(
         tavc_env.twin_parallel_env, tables=InterferenceTables.from_dict(tables)
     )
@@ -330,7 +314,7 @@ def run(settings: Settings) -> Outcome:
     s = settings.sized()
     out = s.out_dir()
     tables, twin = reference(s)
-    convergence_h, measured_h = s.periods_h()
+    convergence_h, measured_h = s.periods_h
     cells = [
         Cell(
             arena,
@@ -347,9 +331,7 @@ def run(settings: Settings) -> Outcome:
             (a, c) for a in tables for c in regime_map.CONDITIONS
         )
     ]
-    results, provenance = run_recorded(
-        cells, CELLS, out / "cells", out, s.recorded(), workers=s.workers, backend=s.backend
-    )
+    results, provenance = s.run_jobs(cells, CELLS, "cells")
     rows = []
     for cell in cells:
         reference_trials = twin.get(cell_key(cell), [])

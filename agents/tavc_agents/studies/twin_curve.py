@@ -30,7 +30,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -39,19 +39,11 @@ from tavc_agents.analysis.plots import Curve, PhysicsPoint, differentiation_figu
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.analysis.synthetic_tables import Family, reach, with_elasticity
-from tavc_agents.experiments.provenance import run_recorded
+from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs
 from tavc_agents.experiments.twin_batch import run_batch
 from tavc_agents.studies import regime_map as rm
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
-    SweepOptions,
-    at_least,
-    positive,
-    refuse_invalid,
-    replace,
-)
+from tavc_agents.studies.common import at_least, positive, refuse_invalid
 from tavc_agents.studies.twin_batch import learner_of
 
 CONDITIONS = (*(rm.softmax_condition(t) for t in (0.002, 0.005, 0.01)), "epsilon_0.1")
@@ -62,8 +54,19 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The twin's curve (its command line)."""
+
+    quick_sizes: ClassVar = {
+        "elasticities": "0.8,1,1.5",
+        "trials": 40,
+        "convergence_h": 1.0,
+        "measured_h": 0.5,
+        "resamples": 200,
+    }
+    recorded_fields: ClassVar = (
+        "elasticities=grid above conditions trials convergence_h measured_h seed resamples family"
+    )
 
     elasticities: str = GRID
     """comma-separated e of the synthetic tables, each within what the family reaches"""
@@ -128,35 +131,16 @@ class Settings(SweepOptions):
         """The e of the grid, in increasing order (a ValueError for text that is not numbers)."""
         return sorted(float(x) for x in self.elasticities.split(",") if x.strip())
 
-    def sized(self) -> Settings:
-        if not self.quick:
-            return self
-        return replace(
-            self,
-            elasticities="0.8,1,1.5",
-            trials=40,
-            convergence_h=1.0,
-            measured_h=0.5,
-            resamples=200,
-        )
+    @property
+    def conditions(self) -> list[str]:
+        return list(CONDITIONS)
 
-    def reference_dir(self) -> Path:
-        name = "twin_curve" + ("_wait" if self.above == "wait" else "")
-        return RESULTS_DIR / (f"{name}_quick" if self.quick else name)
+    @property
+    def family(self) -> str:
+        return Family().describe()
 
-    def recorded(self) -> dict[str, Any]:
-        s = self.sized()
-        return {
-            "elasticities": s.grid,
-            "above": s.above,
-            "conditions": list(CONDITIONS),
-            "trials": s.trials,
-            "convergence_h": s.convergence_h,
-            "measured_h": s.measured_h,
-            "seed": s.seed,
-            "resamples": s.resamples,
-            "family": Family().describe(),
-        }
+    def reference_name(self) -> str:
+        return "twin_curve" + ("_wait" if self.above == "wait" else "")
 
 
 # -- jobs ---------------------------------------------------------------------------------------
@@ -505,15 +489,8 @@ def run(settings: Settings) -> Outcome:
         draw(rows, s, out / FIGURE)
         return Outcome(out, [out / FIGURE], passing_status(s))
     jobs = points(s)
-    results, provenance = run_recorded(
-        jobs,
-        POINTS,
-        out / "cache",
-        out,
-        s.recorded(),
-        workers=s.workers,
-        backend=s.backend,
-        wall_of=lambda result: float(result["wall_s"]),
+    results, provenance = s.run_jobs(
+        jobs, POINTS, "cache", wall_of=lambda result: float(result["wall_s"])
     )
     rows = [point_row(job, results[point_key(job)]) for job in jobs]
     # the bootstrap's own stream: batches draw from [seed, i, j] with i < len(grid)

@@ -33,29 +33,23 @@ run resumes; `reproduce_rows` re-runs a sample of them against `trials.csv`.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.plots import allocation_timeline
-from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
+from tavc_agents.analysis.reports import Report, fmt_ci_of, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.runner import Event, TrialResult
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
 from tavc_agents.model import CompletionModel, SpeedClasses, load_model, missing_model
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
-    SweepOptions,
-    refuse_invalid,
-    run_trials,
-)
+from tavc_agents.studies.common import at_least, positive, refuse_invalid
 from tavc_agents.studies.row_check import compare_rows, run_fresh, sample_rows
 from tavc_env import make_config
 
@@ -72,8 +66,13 @@ ALLOCATORS = {  # registry name -> label
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The vacancy-chain study's settings (its command line)."""
+
+    reference: ClassVar = "vacancy_chain"
+    quick_sizes: ClassVar = {"trials": 2, "convergence_h": 1.0, "phase_h": 1.0}
+    recorded_as_text: ClassVar = True
+    recorded_fields: ClassVar = "trials convergence_h phase_h backend out=out_text quick model"
 
     trials: int = 10
     """trials per allocator (>= 2, for confidence intervals)"""
@@ -89,9 +88,9 @@ class Settings(SweepOptions):
     def __post_init__(self) -> None:
         super().__post_init__()
         checks = [
-            ("trials", _int(self.trials) and self.trials >= 2, "an integer >= 2"),
-            ("convergence_h", _finite(self.convergence_h) and self.convergence_h > 0, "> 0"),
-            ("phase_h", _finite(self.phase_h) and self.phase_h > 0, "> 0"),
+            ("trials", at_least(self.trials, 2), "an integer >= 2"),
+            ("convergence_h", positive(self.convergence_h), "> 0"),
+            ("phase_h", positive(self.phase_h), "> 0"),
         ]
         refuse_invalid(self, checks)
         problem = missing_model(PRESET, self.model)
@@ -99,28 +98,6 @@ class Settings(SweepOptions):
             raise ValueError(
                 f"model = {self.model!r} is invalid; allowed: a model.json ({problem})"
             )
-
-    def sized(self) -> Settings:
-        """These settings with `--quick`'s sizes applied."""
-        if not self.quick:
-            return self
-        return dataclasses.replace(self, trials=2, convergence_h=1.0, phase_h=1.0)
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / ("vacancy_chain_quick" if self.quick else "vacancy_chain")
-
-    def recorded(self) -> dict[str, Any]:
-        """What the report records as the settings (as text, as it always has)."""
-        s = self.sized()
-        return {
-            "trials": str(s.trials),
-            "convergence_h": str(float(s.convergence_h)),
-            "phase_h": str(float(s.phase_h)),
-            "backend": s.backend,
-            "out": str(self.out_dir()),
-            "quick": str(s.quick),
-            "model": str(s.model),
-        }
 
     def times(self) -> dict[str, float]:
         """Nominal times (s) of the breakdown, the repair, the value swap and the end."""
@@ -131,14 +108,6 @@ class Settings(SweepOptions):
             "swap": (s.convergence_h + 2 * s.phase_h) * h,
             "end": (s.convergence_h + 3 * s.phase_h) * h,
         }
-
-
-def _int(x: int) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool)
-
-
-def _finite(x: float) -> bool:
-    return isinstance(x, (int, float)) and math.isfinite(x)
 
 
 def allocator_kwargs(name: str, model: CompletionModel) -> dict[str, Any]:
@@ -236,12 +205,11 @@ def run(settings: Settings) -> Outcome:
     """Run (or resume) the control trials, then the trials with events; write the report."""
     out = settings.out_dir()
     model = load_model(PRESET, settings.model)
-    recorded = settings.recorded()
     trials = settings.sized().trials
     control_specs = [control_spec(settings, model, n, s) for n in ALLOCATORS for s in range(trials)]
-    controls, meta = run_trials(control_specs, out / "cache" / "control", settings, recorded)
+    controls, meta = settings.run_trials(control_specs, Path("cache", "control"))
     event_specs = paired_specs(settings, model, control_specs, controls)
-    runs, event_meta = run_trials(event_specs, out / "cache" / "events", settings, recorded)
+    runs, event_meta = settings.run_trials(event_specs, Path("cache", "events"))
     provenance = combined(meta, event_meta)
     per_trial = [
         trial_row(spec, runs[spec.key], controls[control.key], model, settings)
@@ -370,10 +338,6 @@ def summarise(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
 
 
 # -- the report ----------------------------------------------------------------------------------
-def _ci(row: Mapping[str, Any], key: str, digits: int) -> str:
-    return fmt_ci(row[key], row[f"{key}_low"], row[f"{key}_high"], digits)
-
-
 def breakdown_table(summary: Sequence[Mapping[str, Any]]) -> str:
     header = [
         "allocator",
@@ -392,8 +356,8 @@ def breakdown_table(summary: Sequence[Mapping[str, Any]]) -> str:
             minutes_text(r),
             f"{r['head_fast']} / {r['head_slow']}",
             f"{r['chain_moves_mean']:.1f}",
-            _ci(r, "broken_value_per_h", 1),
-            _ci(r, "lost_vs_control_per_h", 1),
+            fmt_ci_of(r, "broken_value_per_h", 1),
+            fmt_ci_of(r, "lost_vs_control_per_h", 1),
             f"{r['reduced_optimum_per_h']:.1f}",
         ]
         for r in summary
@@ -405,7 +369,7 @@ def swap_table(summary: Sequence[Mapping[str, Any]]) -> str:
     keys = [k for k in summary[0] if k.startswith("swap_w") and k.endswith("fraction")]
     return markdown_table(
         ["allocator", *(f"third {k + 1}" for k in range(len(keys)))],
-        [[r["label"], *(_ci(r, k, 3) for k in keys)] for r in summary],
+        [[r["label"], *(fmt_ci_of(r, k, 3) for k in keys)] for r in summary],
     )
 
 

@@ -13,9 +13,10 @@ import pytest
 pytest.importorskip("matplotlib")
 import matplotlib.figure
 
+from tavc_agents import learning_runs
 from tavc_agents.analysis.interference import plot_interference, read_group_rows
-from tavc_agents.studies import interference, learning_runs, table1
-from tavc_agents.studies.learning_runs import CurveRow, Evaluation, LearningRun
+from tavc_agents.learning_runs import CurveRow, Evaluation, LearningRun
+from tavc_agents.studies import interference, table1
 from tests.helpers import figure_problems
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -41,7 +41,7 @@ def test_the_congestion_preset_is_the_committed_search_s_choice() -> None:
     import json
 
     import tavc_env
-    from tavc_agents.studies.common import RESULTS_DIR
+    from tavc_agents.experiments.study import RESULTS_DIR
 
     report = json.loads((RESULTS_DIR / "congestion_design" / "congestion_design.json").read_text())
     chosen = report["summary"]["chosen"]["candidate"]
@@ -102,7 +102,7 @@ def test_the_passing_preset_is_the_committed_search_s_choice() -> None:
     import json
 
     import tavc_env
-    from tavc_agents.studies.common import RESULTS_DIR
+    from tavc_agents.experiments.study import RESULTS_DIR
 
     folder = RESULTS_DIR / "congestion_design_passing"
     report = json.loads((folder / "congestion_design.json").read_text())

@@ -20,10 +20,10 @@ from types import ModuleType
 import numpy as np
 import pytest
 
+from tavc_agents.experiments.study import RESULTS_DIR
 from tavc_agents.learners.network import Mlp
 from tavc_agents.model import load_model
 from tavc_agents.studies import allocators, tavc_model, vacancy_chain
-from tavc_agents.studies.common import RESULTS_DIR
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from tavc_agents.experiments.study import RESULTS_DIR, RUNS_DIR, differing_cells, run_study
 from tavc_agents.studies import table1
-from tavc_agents.studies.common import RESULTS_DIR, RUNS_DIR, differing_cells, run_study
 
 QUICK = ["--quick", "--workers", "1", "--conditions", "softmax,random"]
 

@@ -20,8 +20,8 @@ from typing import Any
 import pytest
 
 from tavc_agents.analysis import reports
+from tavc_agents.experiments.study import parse_settings
 from tavc_agents.studies import table1 as study
-from tavc_agents.studies.common import parse_settings
 from tavc_env import metrics
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 import tavc_env
+from tavc_agents.experiments.study import RESULTS_DIR
 from tavc_agents.studies import twin_audit as study
-from tavc_agents.studies.common import RESULTS_DIR
 from tavc_env.twin import InterferenceTables
 
 TABLES = InterferenceTables.from_function(tavc_env.preset("dahl2004"), 100.0, switch_cost=1.25)

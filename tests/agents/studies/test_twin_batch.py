@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from tavc_agents.experiments.study import RESULTS_DIR
 from tavc_agents.studies import regime_map
 from tavc_agents.studies import twin_batch as study
-from tavc_agents.studies.common import RESULTS_DIR
 
 
 def test_bad_settings_are_refused(tmp_path: Path) -> None:

@@ -4,6 +4,7 @@ arena drawn only once committed), a short run end to end, and the committed repo
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -11,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tavc_agents.experiments.study import RESULTS_DIR
 from tavc_agents.studies import twin_curve as study
-from tavc_agents.studies.common import RESULTS_DIR
 
 
 def test_bad_settings_are_refused(tmp_path: Path) -> None:
@@ -105,12 +106,14 @@ def test_a_short_run_end_to_end_and_the_redraw(tmp_path: Path) -> None:
     assert (tmp_path / "run" / study.FIGURE).stat().st_size > 10_000
     assert "dahl2004_passing`: pending" in outcome.text
     again = study.run(
-        study.replace(s, figure_only=True, passing_prediction=prediction, passing_result=result)
+        dataclasses.replace(
+            s, figure_only=True, passing_prediction=prediction, passing_result=result
+        )
     )
     assert again.written == [tmp_path / "run" / study.FIGURE]
     assert "with the physics result beside it" in again.text
     with pytest.raises(ValueError, match=r"^figure_only: there is no report"):
-        study.run(study.replace(s, out=tmp_path / "empty", figure_only=True))
+        study.run(dataclasses.replace(s, out=tmp_path / "empty", figure_only=True))
 
 
 def test_the_committed_report_covers_the_grid() -> None:

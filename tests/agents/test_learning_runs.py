@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tavc_agents.learners.network import Mlp, NetworkTeam
-from tavc_agents.studies.learning_runs import LearningRun, RunOptions, what_it_learned
+from tavc_agents.learning_runs import LearningRun, RunOptions, what_it_learned
 from tavc_env import make_config
 
 
@@ -59,8 +59,8 @@ def test_run_options_refuse_bad_values_before_training(
 
 
 def test_every_committed_learning_run_is_whole_and_says_what_it_ran() -> None:
+    from tavc_agents.experiments.study import RESULTS_DIR
     from tavc_agents.studies.allocators import NETWORK_RUNS, PRESETS
-    from tavc_agents.studies.common import RESULTS_DIR
 
     folders = sorted((RESULTS_DIR / "marl").iterdir())
     assert len(folders) >= 3

@@ -1,0 +1,325 @@
+"""The study contract: what every study shares, so that a study is a short program over the library.
+
+A study is a module with a `Settings` class and a `run(settings) -> Outcome` function. `Settings`
+is a frozen dataclass deriving from `StudySettings`: its fields are the study's command line
+(`parse_settings`), and its class says the rest in a few lines: what `--quick` changes
+(`quick_sizes`), which settings its report records (`recorded_fields`), and its committed
+reference folder (`reference`). `StudySettings` brings where a run writes (a new run folder by
+default, never the committed reference results unless asked), and `run_jobs` runs a study's jobs
+with those settings recorded as their provenance. `run` computes, writes its report and returns
+what it wrote; `run_study` is the command line of every study (the benchmark scripts and
+`tavc bench`), which also compares a run's tables with the committed reference.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import datetime as _dt
+import json
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+from typing import Any, ClassVar, Literal, TypeVar
+
+import tyro
+
+from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
+from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.sweep import TRIALS, JobKind, TrialSpec
+
+RESULTS_DIR = (CHECKOUT or Path()) / "benchmarks" / "results"
+"""The committed reference results of the source checkout (changed only with `--update-reference`).
+An installed wheel has none: then `benchmarks/results` under the working directory, which a run
+only reads (to compare its tables with, if it exists), as `RUNS_DIR` is relative to it too."""
+RUNS_DIR = Path("runs")
+"""Where a study writes by default: `runs/<study>-<UTC time>/` under the working directory
+(ignored by git in a checkout)."""
+
+J = TypeVar("J")
+R = TypeVar("R")
+S = TypeVar("S")
+SettingsT = TypeVar("SettingsT", bound="StudySettings")
+
+
+@dataclass(frozen=True, kw_only=True)
+class StudySettings:
+    """A study's settings: the fields every study shares (how its jobs run and where it writes;
+    not part of what it measures, so not recorded), and the class-level description each study
+    gives of its own fields."""
+
+    reference: ClassVar[str | None] = None
+    """The committed reference folder's name under `RESULTS_DIR` (None: `RESULTS_DIR` itself); a
+    study whose folder depends on its settings overrides `reference_name`."""
+    quick_reference_apart: ClassVar[bool] = True
+    """Whether a `--quick` run's reference is a folder of its own, `<reference>_quick`."""
+    quick_sizes: ClassVar[Mapping[str, Any]] = {}
+    """What `--quick` changes (for a study with a `quick` field): field -> smoke-run value."""
+    recorded_fields: ClassVar[str] = ""
+    """The settings the report records, in order, separated by spaces: attribute names (properties
+    too), `key=name` where the recorded name differs from the attribute's. Read from `sized()`."""
+    recorded_as_text: ClassVar[bool] = False
+    """Whether the report records every setting as text (older studies' reports did)."""
+
+    workers: int | None = None
+    """processes, or Ray CPUs (default: all cores)"""
+    backend: Literal["local", "ray"] = "local"
+    """local process pool, or Ray tasks (pip install 'tavc-env[ray]'; set RAY_ADDRESS to use a
+    cluster); results and resume are the same either way"""
+    out: Path | None = None
+    """output folder (default: a new run folder runs/<study>-<time>/, which git ignores)"""
+    resume: Path | None = None
+    """continue an unfinished run in its folder (trials already saved there are not rerun)"""
+    update_reference: bool = False
+    """write into the committed reference results (benchmarks/results/...) instead of a run folder"""
+    run_dir: tyro.conf.Suppress[Path | None] = None
+    """the new run folder, chosen once when the settings are made (none with --out, --resume or
+    --update-reference)"""
+
+    def __post_init__(self) -> None:
+        if self.workers is not None and (not isinstance(self.workers, int) or self.workers < 1):
+            raise ValueError(f"workers = {self.workers!r} is invalid; allowed: an integer >= 1")
+        given = [
+            name
+            for name, value in (
+                ("--out", self.out),
+                ("--resume", self.resume),
+                ("--update-reference", self.update_reference or None),
+            )
+            if value is not None
+        ]
+        if len(given) > 1:
+            raise ValueError(
+                f"{' and '.join(given)} are invalid together; allowed: at most one of --out "
+                "(a folder of your choice), --resume (an earlier run's folder), "
+                "--update-reference"
+            )
+        if self.update_reference and CHECKOUT is None:
+            raise ValueError(
+                "--update-reference is invalid here: it rewrites the committed reference results "
+                "of a source checkout, and this package is installed (not run from a checkout); "
+                "allowed: --out FOLDER, or a new run folder (the default)"
+            )
+        if self.resume is not None and not Path(self.resume).is_dir():
+            raise ValueError(
+                f"--resume {str(self.resume)!r} is invalid; allowed: the folder of an earlier run "
+                "(there is no such folder)"
+            )
+        if not given and self.run_dir is None:
+            reference = self.reference_dir()
+            name = reference.name if reference != RESULTS_DIR else type(self).__module__
+            object.__setattr__(self, "run_dir", new_run_dir(name.rpartition(".")[2]))
+
+    @property
+    def is_quick(self) -> bool:
+        """Whether this is a smoke run (`--quick`, for a study that has one)."""
+        return bool(getattr(self, "quick", False))
+
+    def sized(self: SettingsT) -> SettingsT:
+        """These settings with `--quick`'s sizes applied (validated again)."""
+        if not (self.is_quick and self.quick_sizes):
+            return self
+        return dataclasses.replace(self, **self.quick_sizes)
+
+    def reference_name(self) -> str | None:
+        """The committed reference folder's name (before any `_quick`)."""
+        return self.reference
+
+    def reference_dir(self) -> Path:
+        """The study's committed reference results."""
+        name = self.reference_name()
+        if name is None:
+            return RESULTS_DIR
+        quick = self.is_quick and self.quick_reference_apart
+        return RESULTS_DIR / (f"{name}_quick" if quick else name)
+
+    def out_dir(self) -> Path:
+        """Where this run writes: `--update-reference`, `--resume`, `--out`, or a new run folder."""
+        if self.update_reference:
+            return self.reference_dir()
+        if self.resume is not None:
+            return Path(self.resume)
+        if self.out is not None:
+            return Path(self.out)
+        assert self.run_dir is not None
+        return self.run_dir
+
+    @property
+    def out_text(self) -> str:
+        """The output folder as text (recorded by the studies that record it)."""
+        return str(self.out_dir())
+
+    def recorded(self) -> dict[str, Any]:
+        """What the report records as the settings: `recorded_fields`."""
+        return self.recorded_of(self.recorded_fields)
+
+    def recorded_of(self, fields: str) -> dict[str, Any]:
+        """`fields` (as `recorded_fields` names them) of the sized settings, tuples as lists."""
+        sized = self.sized()
+        recorded = {}
+        for entry in fields.split():
+            key, _, name = entry.partition("=")
+            value = getattr(sized, name or key)
+            value = list(value) if isinstance(value, tuple) else value
+            recorded[key] = str(value) if self.recorded_as_text else value
+        return recorded
+
+    def run_jobs(
+        self,
+        jobs: Sequence[J],
+        kind: JobKind[J, R],
+        jobs_in: str | Path,
+        *,
+        provenance_in: str | Path = "",
+        wall_of: Callable[[R], float] | None = None,
+        progress_bar: bool = True,
+    ) -> tuple[dict[str, R], dict[str, Any]]:
+        """Run (or resume) `jobs` with a progress bar, each saved in the output folder's `jobs_in`
+        as it finishes, with this run's workers and backend; return the results by key and their
+        provenance, which records these settings and is kept in `provenance_in` (see
+        `tavc_agents.experiments.provenance.run_recorded`)."""
+        out = self.out_dir()
+        return run_recorded(
+            jobs,
+            kind,
+            out / jobs_in,
+            out / provenance_in,
+            self.recorded(),
+            workers=self.workers,
+            backend=self.backend,
+            wall_of=wall_of,
+            progress_bar=progress_bar,
+        )
+
+    def run_trials(
+        self, specs: Sequence[TrialSpec], folder: str | Path = ""
+    ) -> tuple[dict[str, TrialResult], dict[str, Any]]:
+        """`run_jobs` for trials of the trial runner: saved in `folder`/trials of the output folder,
+        their provenance in `folder`."""
+        return self.run_jobs(
+            specs,
+            TRIALS,
+            Path(folder, "trials"),
+            provenance_in=folder,
+            wall_of=lambda result: result.wall_s,
+        )
+
+
+def new_run_dir(study: str) -> Path:
+    """A run folder that does not exist yet: `runs/<study>-<UTC time>[-k]`."""
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    folder = RUNS_DIR / f"{study}-{stamp}"
+    k = 1
+    while folder.exists():
+        k += 1
+        folder = RUNS_DIR / f"{study}-{stamp}-{k}"
+    return folder
+
+
+@dataclass
+class Outcome:
+    """What running a study left: the folder it wrote, the files, the text to print (the results
+    table a person reads first), and what failed (each a line; the command then exits 1)."""
+
+    out_dir: Path
+    written: list[Path]
+    text: str
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def failed(self) -> bool:
+        return bool(self.failures)
+
+
+def parse_settings(
+    settings_type: type[S],
+    argv: Sequence[str] | None,
+    description: str,
+    prog: str | None = None,
+) -> S:
+    """The settings of a study from a command line (`argv`, default: sys.argv[1:]): one option
+    per field, its help from the field's docstring; `--set` (an `Overrides` field) repeats. A
+    setting its `__post_init__` refuses is a usage error that names it."""
+    return tyro.cli(settings_type, args=argv, description=description, prog=prog)
+
+
+# -- the command line of every study ----------------------------------------------------------------
+def run_study(
+    module: ModuleType, argv: Sequence[str] | None, description: str, prog: str | None = None
+) -> int:
+    """Parse a study's settings from `argv`, say where it writes, run it, print its results table,
+    where it wrote, and whether its tables agree with the committed reference (the module's
+    `agreement(out, reference)` if it has one, else `compare_tables`). The exit code is 1 if the
+    study says it failed (`outcome.failures`, e.g. a long run that found a gap)."""
+    settings = parse_settings(module.Settings, argv, description, prog)
+    out = settings.out_dir()
+    print(f"Writing to {out}/", flush=True)
+    outcome: Outcome = module.run(settings)
+    print(outcome.text)
+    for line in outcome.failures:
+        print(line, file=sys.stderr)
+    print(f"\nResults in {outcome.out_dir}/")
+    reference = settings.reference_dir()
+    if CHECKOUT is None and not reference.is_dir():
+        print(
+            "Not compared with the committed reference: it is part of a source checkout "
+            "(benchmarks/results/), and this package is installed."
+        )
+    elif Path(outcome.out_dir).resolve() != reference.resolve():
+        compare = getattr(module, "agreement", compare_tables)
+        for line in compare(Path(outcome.out_dir), reference):
+            print(line)
+    return 1 if outcome.failed else 0
+
+
+def compare_tables(out: Path, reference: Path) -> list[str]:
+    """Whether each report table written in `out` equals the committed reference's, cell by cell.
+    A report table is a CSV beside a JSON report (`name.csv`, `name.json`) whose metadata records
+    the settings; tables of runs with other settings than the reference's are not compared."""
+    lines = []
+    for fresh in sorted(out.glob("*.csv")):
+        ref = reference / fresh.name
+        mine, theirs = recorded_settings(fresh), recorded_settings(ref)
+        if not ref.is_file() or mine is None or theirs is None:
+            continue
+        if mine != theirs:
+            changed = sorted(k for k in {*mine, *theirs} if mine.get(k) != theirs.get(k))
+            lines.append(
+                f"{fresh.name}: not compared with the committed reference {ref}: other settings "
+                f"({', '.join(changed)})"
+            )
+            continue
+        differ, total = differing_cells(fresh, ref)
+        verdict = "identical to" if differ == 0 else f"{differ} of {total} cells differ from"
+        lines.append(f"{fresh.name}: {verdict} the committed reference {ref}")
+    return lines or [f"No committed reference report to compare with in {reference}/."]
+
+
+def recorded_settings(table: Path) -> dict[str, Any] | None:
+    """The settings recorded in the JSON report beside the CSV `table` (None if there is none),
+    without the output folder (where, not what)."""
+    report = table.with_suffix(".json")
+    if not report.is_file():
+        return None
+    try:
+        settings = json.loads(report.read_text(encoding="utf-8"))["metadata"]["settings"]
+    except (ValueError, KeyError, TypeError):
+        return None
+    return {k: v for k, v in settings.items() if k != "out"} if isinstance(settings, dict) else None
+
+
+def differing_cells(a: Path, b: Path) -> tuple[int, int]:
+    """How many cells of CSV `a` differ from CSV `b` (cells of rows or columns only one has
+    count as differing), and how many cells the larger has."""
+    rows_a = list(csv.reader(a.read_text(encoding="utf-8").splitlines()))
+    rows_b = list(csv.reader(b.read_text(encoding="utf-8").splitlines()))
+    differ = total = 0
+    for k in range(max(len(rows_a), len(rows_b))):
+        ra = rows_a[k] if k < len(rows_a) else []
+        rb = rows_b[k] if k < len(rows_b) else []
+        for j in range(max(len(ra), len(rb))):
+            total += 1
+            differ += (ra[j] if j < len(ra) else None) != (rb[j] if j < len(rb) else None)
+    return differ, total
