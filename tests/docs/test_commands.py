@@ -25,9 +25,9 @@ from pathlib import Path
 import pytest
 
 from tavc_agents import studies
-from tavc_env.adapters.benchmarl import task_ids
 from tavc_agents.studies.common import parse_settings
 from tavc_agents.studies.learning_runs import RunOptions
+from tavc_env.adapters.benchmarl import task_ids
 from tests.docs.markdown import ROOT, Block, documentation_files, fenced_blocks
 
 SKIPPED = ("pip", "mkdocs")  # (and `python -m pytest`)

@@ -37,12 +37,8 @@ def test_the_env_is_the_same_under_either_naming() -> None:
             np.testing.assert_array_equal(obs_a[a]["action_mask"], obs_b[b]["action_mask"])
             assert infos_a[a] == infos_b[b]
         choices = rng.integers(2, size=6)
-        obs_a, rew_a, _, _, infos_a = plain.step(
-            {a: int(c) for a, c in zip(plain.agents, choices)}
-        )
-        obs_b, rew_b, _, _, infos_b = named.step(
-            {b: int(c) for b, c in zip(named.agents, choices)}
-        )
+        obs_a, rew_a, _, _, infos_a = plain.step({a: int(c) for a, c in zip(plain.agents, choices)})
+        obs_b, rew_b, _, _, infos_b = named.step({b: int(c) for b, c in zip(named.agents, choices)})
         assert list(rew_a.values()) == list(rew_b.values())
 
 

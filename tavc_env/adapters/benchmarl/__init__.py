@@ -63,4 +63,3 @@ def main(argv: Sequence[str] | None = None) -> None:
     # Hydra reads its overrides from sys.argv; the search path is one more override
     sys.argv = [sys.argv[0], *args, f"hydra.searchpath=[file://{CONF_DIR}]"]
     hydra_experiment()
-

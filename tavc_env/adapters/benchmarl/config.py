@@ -52,14 +52,10 @@ class TavcTaskConfig:
         """`config` (a task's YAML as a mapping, or BenchMARL's task config) checked, or a
         ValueError that names `where` (the task), the key, its value and what is allowed."""
         require(isinstance(config, Mapping), where, config, "a mapping of task keys")
-        require(
-            all(isinstance(k, str) for k in config), f"{where} keys", list(config), "strings"
-        )
+        require(all(isinstance(k, str) for k in config), f"{where} keys", list(config), "strings")
         require("max_steps" in config, f"{where} keys", sorted(config), "a max_steps key")
         steps = config["max_steps"]
-        require(
-            is_integer(steps) and steps >= 1, f"{where}: max_steps", steps, "an integer >= 1"
-        )
+        require(is_integer(steps) and steps >= 1, f"{where}: max_steps", steps, "an integer >= 1")
         require(
             "max_cycles" not in config,
             f"{where}: max_cycles",

@@ -64,7 +64,8 @@ class TavcTaskClass(TaskClass):
         return self.checked.max_steps
 
     def has_render(self, env: EnvBase) -> bool:
-        return False  # rendering needs pygame (the `render` extra), which BenchMARL's does not bring
+        # Rendering needs pygame (the `render` extra), which the `benchmarl` extra does not bring
+        return False
 
     def group_map(self, env: EnvBase) -> dict[str, list[str]]:
         return dict(env.group_map)
@@ -78,7 +79,7 @@ class TavcTaskClass(TaskClass):
                     del spec[group][key]
             if spec[group].is_empty():
                 del spec[group]
-        if "state" in spec.keys():
+        if "state" in spec.keys():  # noqa: SIM118 (the top-level keys, as a Composite lists them)
             del spec["state"]
         return spec
 
@@ -94,7 +95,7 @@ class TavcTaskClass(TaskClass):
         return None if spec.is_empty() else spec
 
     def state_spec(self, env: EnvBase) -> Composite | None:
-        if "state" in env.observation_spec.keys():
+        if "state" in env.observation_spec.keys():  # noqa: SIM118 (as above)
             return Composite({"state": env.observation_spec["state"].clone()})
         return None
 
@@ -125,7 +126,7 @@ class _TavcTasks(Task):
 
 # One member per YAML file (BenchMARL's Task numbers its members itself)
 # (`module` and `qualname` let pickle find them: BenchMARL pickles the task with each experiment)
-TavcTask: Any = _TavcTasks(  # type: ignore[call-arg]
+TavcTask: Any = _TavcTasks(
     "TavcTask", [name.upper() for name in task_names()], module=__name__, qualname="TavcTask"
 )
 

@@ -56,7 +56,10 @@ def test_the_yaml_files_are_package_data() -> None:
         ({"max_steps": 0}, r"^task t: max_steps = 0 is invalid; allowed: an integer >= 1"),
         ({"max_steps": None}, r"^task t: max_steps = None is invalid"),
         ({"max_cycles": 10}, r"^task t: max_cycles = 10 is invalid; allowed: no max_cycles key"),
-        ({"reward_scale": -1.0}, r"^task t: reward_scale = -1\.0 is invalid; allowed: a number > 0"),
+        (
+            {"reward_scale": -1.0},
+            r"^task t: reward_scale = -1\.0 is invalid; allowed: a number > 0",
+        ),
         ({"speed": 0.3}, r"^task t: unknown configuration key\(s\) \['speed'\]"),
         ({"preset": "dahl"}, r"^task t: preset = 'dahl' is invalid"),
         ({"agent_names": "class"}, r"^task t: agent_names = 'class' is invalid"),
@@ -75,7 +78,9 @@ def test_a_missing_max_steps_and_an_unknown_task_are_refused() -> None:
     del config["max_steps"]
     with pytest.raises(ValueError, match=r"^task t keys = .* allowed: a max_steps key"):
         TavcTaskConfig.of(config, "task t")
-    with pytest.raises(ValueError, match=r"^task = 'nope' is invalid; allowed: one of \['dahl2004'"):
+    with pytest.raises(
+        ValueError, match=r"^task = 'nope' is invalid; allowed: one of \['dahl2004'"
+    ):
         family.load_task_config("nope")
 
 
