@@ -4,7 +4,7 @@
 
 | | |
 |---|---|
-| Agents | `robot_0 .. robot_{n-1}` (`dahl2004`: 0-2 fast at 0.30 m/s, 3-5 slow at 0.20 m/s) |
+| Agents | `robot_0 .. robot_{n-1}` (`dahl2004`: 0-2 fast at 0.30 m/s, 3-5 slow at 0.20 m/s); with `agent_names="speed_class"`, `fast_0 .. fast_2, slow_0 .. slow_2` |
 | Action space | `Discrete(n_circuits)`: action `i` = serve circuit `i` next |
 | Observation space | `observation_format="dict"` (default): `Dict(observation=Box(0, 1, (k,), float32), action_mask=Box(0, 1, (n_circuits,), int8))`; `"box"`: the `Box` alone, the mask in each info. `k` and the content depend on `observation_mode` (`tavc_env.observations`): `paper` (default, one-hot of the robot's last circuit), `paper_id`, `rich` |
 | Reward | `w_i / t` when a task on circuit `i` completes (t from decision to delivery, in ms by default), else 0 |
@@ -72,7 +72,13 @@ from tavc_env.observations import (
     frozen,
     pose_features,
 )
-from tavc_env.options import RENDER_MODES, TIME_UNITS, EnvOptions, resolve_env_args
+from tavc_env.options import (
+    RENDER_MODES,
+    TIME_UNITS,
+    EnvOptions,
+    agent_names,
+    resolve_env_args,
+)
 
 ENV_NAME = "tavc_arena_v1"
 # The names of the `phase` codes in infos: PHASES[info["phase"]]
@@ -102,7 +108,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self.render_mode = self.options.render_mode
 
         n, m = self.config.n_robots, self.config.n_circuits
-        self.possible_agents = [f"robot_{i}" for i in range(n)]
+        self.possible_agents = agent_names(self.config, self.options.agent_names)
         self.agents: list[str] = []
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
         self._builder = ObservationBuilder(self.config, self.options.observation_mode)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -24,6 +25,10 @@ from tavc_env.observations import check_observation_args
 
 RENDER_MODES = ("human", "rgb_array")
 TIME_UNITS = {"ms": 1000.0, "s": 1.0}
+AGENT_NAMES = ("index", "speed_class")
+# A speed-class label usable as an agent-name prefix: TorchRL and BenchMARL group agents by the part
+# of the name before its first "_", so a label must not contain one
+_CLASS_LABEL = re.compile(r"[A-Za-z][A-Za-z0-9-]*")
 
 
 @dataclass(frozen=True)
@@ -45,6 +50,10 @@ class EnvOptions:
             `tavc_env.observations` for what each reveals).
         observation_format: "dict" (observation + action_mask) or "box" (the vector alone).
         render_mode: None, "human" or "rgb_array".
+        agent_names: "index" (default: `robot_0 .. robot_{n-1}`) or "speed_class" (each robot's
+            `speed_class` label and its number within the class, in robot order: `fast_0, fast_1,
+            fast_2, slow_0, ...`, which TorchRL and BenchMARL group by class). Either way
+            `possible_agents[i]` is robot `i`.
     """
 
     max_cycles: int = 100_000
@@ -56,6 +65,7 @@ class EnvOptions:
     observation_mode: str = "paper"
     observation_format: str = "dict"
     render_mode: str | None = None
+    agent_names: str = "index"
 
     def __post_init__(self) -> None:
         check_observation_args(self.observation_mode, self.observation_format)
@@ -104,6 +114,12 @@ class EnvOptions:
             self.jam_window_s,
             "a time > 0 s, or math.inf (no jam detection)",
         )
+        require(
+            isinstance(self.agent_names, str) and self.agent_names in AGENT_NAMES,
+            "agent_names",
+            self.agent_names,
+            str(list(AGENT_NAMES)),
+        )
         object.__setattr__(self, "max_cycles", int(self.max_cycles))
         object.__setattr__(self, "max_sim_time_s", float(self.max_sim_time_s))
         object.__setattr__(self, "step_cap_s", float(self.step_cap_s))
@@ -148,6 +164,16 @@ class EnvOptions:
             self.step_cap_s,
             f"a finite time >= one physics step ({dt} s) and {resolved}",
         )
+        if self.agent_names == "speed_class":
+            for i, robot in enumerate(config.robots):
+                require(
+                    _CLASS_LABEL.fullmatch(robot.speed_class) is not None,
+                    "agent_names",
+                    self.agent_names,
+                    f"'index', or 'speed_class' with every robot labelled by a letter then letters, "
+                    f"digits or '-' (no '_': libraries group agents by the name before its first "
+                    f"'_'); robots[{i}].speed_class is {robot.speed_class!r}",
+                )
 
     def changed(self) -> dict[str, Any]:
         """The options that differ from their defaults, by name (what a record of a run needs)."""
@@ -163,6 +189,20 @@ class EnvOptions:
 
 
 OPTION_KEYS = tuple(f.name for f in dataclasses.fields(EnvOptions))
+
+
+def agent_names(config: ArenaConfig, scheme: str = "index") -> list[str]:
+    """The agent names of `config`'s robots under the `agent_names` option `scheme`, in robot
+    order (checked by `EnvOptions.check`)."""
+    if scheme == "index":
+        return [f"robot_{i}" for i in range(config.n_robots)]
+    seen: dict[str, int] = {}
+    names = []
+    for robot in config.robots:
+        k = seen.get(robot.speed_class, 0)
+        seen[robot.speed_class] = k + 1
+        names.append(f"{robot.speed_class}_{k}")
+    return names
 
 
 def split_env_kwargs(kwargs: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

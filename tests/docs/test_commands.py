@@ -8,6 +8,8 @@
   exactly as the command would, without running it.
 - Example scripts (`python docs/examples/<name>.py ...`) train deep networks: their options are
   checked against the example's own (its `train` parameters and `RunOptions`).
+- BenchMARL's command line (`python -m tavc_env.adapters.benchmarl task=tavc/<task> ...`): its
+  task is one of the shipped YAML files; BenchMARL itself (a venv of its own) is not needed.
 - Installs, the test suite and `mkdocs serve` are what CI itself runs; they are not repeated.
 """
 
@@ -25,6 +27,7 @@ import pytest
 from tavc_agents import studies
 from tavc_agents.experiments.study import parse_settings
 from tavc_agents.learning_runs import RunOptions
+from tavc_env.adapters.benchmarl import task_ids
 from tests.docs.markdown import ROOT, Block, documentation_files, fenced_blocks
 
 SKIPPED = ("pip", "mkdocs")  # (and `python -m pytest`)
@@ -77,6 +80,10 @@ def test_documented_commands_work_as_written(block: Block, tmp_path: Path) -> No
             flags = {w for w in words[2:] if w.startswith("--")}
             unknown = flags - example_options(script)
             assert not unknown, f"{block.where}: {script.name} has no options {sorted(unknown)}"
+            continue
+        if words[:3] == ["python", "-m", "tavc_env.adapters.benchmarl"]:
+            overrides = dict(w.split("=", 1) for w in words[3:])  # Hydra's key=value
+            assert overrides.get("task") in task_ids(), f"{block.where}: no such task {overrides}"
             continue
         study = study_of(words)
         if study is not None:
