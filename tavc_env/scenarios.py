@@ -236,6 +236,16 @@ SCENARIOS: Mapping[str, Scenario] = MappingProxyType(
                 model="three_circuits_three_classes",
                 arena={"start_circuits": (2, 2, 2, 1, 1, 1, 2, 2, 1)},
             ),
+            Scenario(
+                name="large_team",
+                version=0,
+                summary="24 robots (fast and slow alternating) on eight circuits worth 2200 "
+                "down to 2130, every robot starting on the four low-value ones (three fast "
+                "and three slow on each): half the circuits to fill.",
+                preset="large_team",
+                model="large_team",
+                arena={"start_circuits": tuple(4 + (i // 2) % 4 for i in range(24))},
+            ),
         )
     }
 )

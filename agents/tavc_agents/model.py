@@ -20,6 +20,7 @@ is free; the `tavc_model` study checks its predictions against the full arena.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,6 +37,9 @@ REFERENCE_MODELS = Path(__file__).parent / "data" / "models"
 them; the `tavc_model` study writes them (`--update-reference`), and this is their only copy."""
 
 Group = tuple[int, ...]  # robots per speed class on one circuit
+EXHAUSTIVE_LIMIT = 200_000
+"""`CompletionModel.optimum` searches exhaustively up to this many allocations (the presets of
+two and three circuits have at most a few thousand), by circuit beyond."""
 Allocation = tuple[Group, ...]  # one group per circuit
 
 
@@ -183,8 +187,34 @@ class CompletionModel:
         return sorted(scored, key=lambda item: (-item[0], item[1]))
 
     def optimum(self, team: Sequence[int] | None = None) -> Allocation:
-        """The model-optimal allocation of `team` (default: the whole team), by exhaustive search."""
-        return self.ranked(team)[0][1]
+        """The model-optimal allocation of `team` (default: the whole team): by exhaustive search
+        (`ranked`, ties broken lexicographically) up to `EXHAUSTIVE_LIMIT` allocations, beyond
+        that by dynamic programming over the circuits (exact too: the value is a sum over
+        circuits; ties broken towards the first group tried, the largest on circuit 0)."""
+        counts = self._team(team)
+        splits = math.prod(math.comb(n + self.n_circuits - 1, self.n_circuits - 1) for n in counts)
+        if splits <= EXHAUSTIVE_LIMIT:
+            return self.ranked(counts)[0][1]
+        return self._optimum_by_circuit(counts)
+
+    def _optimum_by_circuit(self, team: Group) -> Allocation:
+        # best[i][r]: the best value of circuits i.. serving the robots r (counts per class)
+        remaining = list(itertools.product(*(range(n + 1) for n in team)))
+        m = self.n_circuits
+        best: list[dict[Group, tuple[float, Allocation]]] = [{} for _ in range(m + 1)]
+        best[m] = {r: (0.0 if sum(r) == 0 else -math.inf, ()) for r in remaining}
+        for i in range(m - 1, -1, -1):
+            w = self.values[i]
+            for r in remaining:
+                top: tuple[float, Allocation] = (-math.inf, ())
+                for g in itertools.product(*(range(n, -1, -1) for n in r)):
+                    rest = tuple(a - b for a, b in zip(r, g))
+                    value, tail = best[i + 1][rest]
+                    value += w * self.rate(i, g) if sum(g) else 0.0
+                    if value > top[0]:
+                        top = (value, (g, *tail))
+                best[i][r] = top
+        return best[0][team][1]
 
     def neighbours(self, allocation: Allocation) -> list[Allocation]:
         """Allocations one move away: one robot of one class moved to another circuit."""

@@ -492,3 +492,18 @@ def test_short_groups_and_bad_static_circuits_are_named() -> None:
     bad[0, 1, 0] = np.inf
     with pytest.raises(ValueError, match=r"rates = \[inf\] is invalid"):
         CompletionModel(model.classes, model.team, model.values, bad)
+
+
+def test_the_optimum_by_circuit_equals_the_exhaustive_search() -> None:
+    # beyond EXHAUSTIVE_LIMIT allocations the optimum comes from a search circuit by circuit;
+    # on every shipped model and under other values, it is worth what the exhaustive one is
+    from tavc_agents.model import REFERENCE_MODELS, CompletionModel
+
+    for path in sorted(REFERENCE_MODELS.glob("*.json")):
+        model = CompletionModel.load(path)
+        if model.n_circuits > 3:
+            continue
+        for values in (model.values, tuple(1000.0 * (i + 1) for i in range(model.n_circuits))):
+            at = model.with_values(values)
+            best = at.ranked()[0][0]
+            assert at.value_rate(at._optimum_by_circuit(at.team)) == pytest.approx(best, rel=1e-12)

@@ -23,8 +23,7 @@ import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -32,18 +31,10 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.runner import TrialResult, env_seed, trial_streams
+from tavc_agents.experiments.study import Outcome, StudySettings
 from tavc_agents.experiments.sweep import TrialSpec
-from tavc_agents.model import Allocation, CompletionModel, SpeedClasses, load_model
-from tavc_agents.studies.common import (
-    RESULTS_DIR,
-    Outcome,
-    SweepOptions,
-    at_least,
-    positive,
-    refuse_invalid,
-    replace,
-    run_trials,
-)
+from tavc_agents.model import CompletionModel, SpeedClasses, load_model
+from tavc_agents.studies.common import at_least, positive, refuse_invalid
 from tavc_env.scenarios import SCENARIOS, Scenario, ScenarioEnv
 
 MIN_HEADROOM = 0.15
@@ -53,8 +44,11 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The references' settings (their command line)."""
+
+    quick_sizes: ClassVar = {"seeds": 2, "episode_h": 0.5}
+    recorded_fields: ClassVar = "stage scenarios seeds_text episode_text"
 
     stage: Literal["predict", "measure"] = "predict"
     """predict (the model's references, no physics) or measure (physics episodes)"""
@@ -87,21 +81,16 @@ class Settings(SweepOptions):
             ],
         )
 
-    def sized(self) -> Settings:
-        return replace(self, seeds=2, episode_h=0.5) if self.quick else self
+    def reference_name(self) -> str:
+        return "scenarios_prediction" if self.stage == "predict" else "scenarios"
 
-    def reference_dir(self) -> Path:
-        name = "scenarios_prediction" if self.stage == "predict" else "scenarios"
-        return RESULTS_DIR / (f"{name}_quick" if self.quick else name)
+    @property
+    def seeds_text(self) -> str:
+        return "all" if self.seeds is None else str(self.seeds)
 
-    def recorded(self) -> dict[str, Any]:
-        s = self.sized()
-        return {
-            "stage": s.stage,
-            "scenarios": ", ".join(s.scenarios),
-            "seeds": "all" if s.seeds is None else str(s.seeds),
-            "episode_h": "scenario's" if s.episode_h is None else str(float(s.episode_h)),
-        }
+    @property
+    def episode_text(self) -> str:
+        return "scenario's" if self.episode_h is None else str(float(self.episode_h))
 
     def seeds_of(self, scenario: Scenario) -> tuple[int, ...]:
         return scenario.eval_seeds if self.seeds is None else scenario.eval_seeds[: self.seeds]
@@ -145,14 +134,20 @@ def episode(scenario: Scenario, seed: int, episode_s: float) -> tuple[list[int],
     return start, phases
 
 
-def split_probability(allocation: Allocation, m: int) -> float:
-    """The chance of `allocation` when every robot picks one of `m` circuits uniformly."""
-    p = 1.0
-    for k in range(len(allocation[0])):
-        counts = [g[k] for g in allocation]
-        p *= math.factorial(sum(counts)) / math.prod(math.factorial(c) for c in counts)
-        p *= m ** -sum(counts)
-    return p
+def random_value_rate(model: CompletionModel, team: Sequence[int]) -> float:
+    """The expected value rate when every robot of `team` serves a uniformly drawn circuit: by
+    linearity, per circuit the expectation over its group, whose count of each class is
+    binomial(n_k, 1 / m) (exact, without enumerating the team's splits)."""
+    m = model.n_circuits
+    total = 0.0
+    for group in itertools.product(*(range(n + 1) for n in team)):
+        if sum(group) == 0:
+            continue
+        chance = math.prod(
+            math.comb(n, g) * (1 / m) ** g * (1 - 1 / m) ** (n - g) for n, g in zip(team, group)
+        )
+        total += chance * sum(w * model.rate(i, group) for i, w in enumerate(model.values))
+    return total
 
 
 def phase_values(
@@ -169,11 +164,10 @@ def phase_values(
     for i in phase.working:
         groups[start[i]][classes.of_robot[i]] += 1
     stay = tuple(tuple(g) for g in groups)
-    random = sum(split_probability(a, m) * at.value_rate(a) for a in at.allocations(team))
     return {
-        "optimum": at.ranked(team)[0][0] * 3600.0,
+        "optimum": at.value_rate(at.optimum(team)) * 3600.0,
         "stay": at.value_rate(stay) * 3600.0,
-        "random": random * 3600.0,
+        "random": random_value_rate(at, team) * 3600.0,
     }
 
 
@@ -360,7 +354,7 @@ def run(settings: Settings) -> Outcome:
         report = prediction_report(s, predictions)
         written = report.write(out, run_metadata(**s.recorded()))
         return Outcome(out, written, report.body)
-    results, provenance = run_trials(measure_specs(s), out, s, s.recorded())
+    results, provenance = s.run_trials(measure_specs(s))
     report = measure_report(s, results, predictions)
     written = report.write(out, provenance)
     return Outcome(out, written, report.body)

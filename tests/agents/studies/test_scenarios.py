@@ -34,11 +34,18 @@ def test_priority_shift_phases_alternate_the_profiles_as_the_trial_would_play_th
     assert all(5400.0 <= p.end_s - p.start_s <= 9000.1 for p in phases[:-1])
 
 
-def test_split_probabilities_of_every_allocation_sum_to_one() -> None:
+def test_the_random_expectation_equals_the_enumeration_of_every_split() -> None:
     model = load_model("three_circuits_three_classes")
     team = (2, 1, 3)
-    total = sum(study.split_probability(a, 3) for a in model.allocations(team))
-    assert total == pytest.approx(1.0)
+    enumerated = 0.0
+    for allocation in model.allocations(team):
+        chance = 1.0
+        for k in range(3):
+            counts = [g[k] for g in allocation]
+            chance *= math.factorial(sum(counts)) / math.prod(math.factorial(c) for c in counts)
+            chance *= 3.0 ** -sum(counts)
+        enumerated += chance * model.value_rate(allocation)
+    assert study.random_value_rate(model, team) == pytest.approx(enumerated, rel=1e-12)
 
 
 def test_the_model_ranks_optimum_over_stay_and_random_in_every_phase() -> None:
