@@ -127,7 +127,6 @@ def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
     options, such as time limits, are not part of the arena)."""
     from tavc_env import make_config
     from tavc_env.options import split_env_kwargs
-
     from tavc_env.scenarios import scenario_named
 
     arena = dict(env_kwargs)
