@@ -45,7 +45,7 @@ class Settings:
 
     preset: str = "dahl2004"
     seed: int = 0
-    total_hours: float = 100.0
+    total_hours: float = 1000.0
     """simulated hours of training, in episodes of `rollout_hours` (one PPO update each)"""
     rollout_hours: float = 2.0
     observation_mode: Literal["paper", "paper_id", "rich"] = "paper_id"
@@ -309,6 +309,35 @@ def table(rows: list[tuple[str, list[float], float]], settings: Settings) -> str
     return "\n".join(lines)
 
 
+def policy_table(agent: Agent, settings: Settings) -> str:
+    """What the network does with the paper's state (and the robot's index, in `paper_id`): the
+    probability of choosing each circuit, by robot and last circuit. Empty for `rich`, whose
+    observations cannot be listed."""
+    if settings.observation_mode == "rich":
+        return ""
+    config = tavc_env.preset(settings.preset)
+    n, m = config.n_robots, config.n_circuits
+    lines = ["P(next circuit) by robot and last circuit:", ""]
+    lines += ["| robot | speed | last | " + " | ".join(f"P({c})" for c in range(m)) + " |"]
+    lines += ["|---|---:|---:|" + "---:|" * m]
+    for i in range(n if settings.observation_mode == "paper_id" else 1):
+        for last in range(m):
+            x = np.eye(m, dtype=np.float32)[last]
+            if settings.observation_mode == "paper_id":
+                x = np.concatenate([x, np.eye(n, dtype=np.float32)[i]])
+            with torch.no_grad():
+                p = agent.dist(torch.as_tensor(x[None]), torch.ones(1, m, dtype=torch.bool)).probs[
+                    0
+                ]
+            robot = f"robot_{i}" if settings.observation_mode == "paper_id" else "any"
+            speed = (
+                f"{config.robots[i].speed:g}" if settings.observation_mode == "paper_id" else "-"
+            )
+            cells = " | ".join(f"{float(q):.2f}" for q in p)
+            lines.append(f"| {robot} | {speed} | {last} | {cells} |")
+    return "\n".join(lines)
+
+
 def train(settings: Settings) -> tuple[Agent, str]:
     """Train, evaluate; the network and the final table."""
     torch.manual_seed(settings.seed)
@@ -341,6 +370,8 @@ def train(settings: Settings) -> tuple[Agent, str]:
             flush=True,
         )
     result = table(evaluate(agent, settings), settings)
+    summary = policy_table(agent, settings)
+    result += f"\n\n{summary}" if summary else ""
     print(result, flush=True)
     if settings.out is not None:
         settings.out.parent.mkdir(parents=True, exist_ok=True)
