@@ -7,7 +7,7 @@
 | Agents | `robot_0 .. robot_{n-1}` (`dahl2004`: 0-2 fast at 0.30 m/s, 3-5 slow at 0.20 m/s); with `agent_names="speed_class"`, `fast_0 .. fast_2, slow_0 .. slow_2` |
 | Action space | `Discrete(n_circuits)`: action `i` = serve circuit `i` next |
 | Observation space | `observation_format="dict"` (default): `Dict(observation=Box(0, 1, (k,), float32), action_mask=Box(0, 1, (n_circuits,), int8))`; `"box"`: the `Box` alone, the mask in each info. `k` and the content depend on `observation_mode` (`tavc_env.observations`): `paper` (default, one-hot of the robot's last circuit), `paper_id`, `rich` |
-| Reward | `w_i / t` when a task on circuit `i` completes (t from decision to delivery, in ms by default), else 0 |
+| Reward | `w_i / t` when a task on circuit `i` completes (t from decision to delivery, in ms by default), else 0; `reward="value"`: `w_i` (see docs/semi_mdp.md) |
 | Stepping | event-driven: each step runs until some robot completes a task (or `step_cap_s`); or every `decision_interval_s` |
 | Infos | numbers and booleans only (every library can make tensors of them): `action_required`, `circuit`, `phase` (an integer code; its names are `PHASES`), `broken`, `task_completed` and `task_time_s` (0 when no task completed in the step; `completed_task_s(info)` reads both), `elapsed_s`, `sim_time_s`, `completed_tasks`, `jammed`; with `observation_format="box"` also `action_mask` |
 | State | `state()`: per robot position, heading, velocity, circuit and phase; per station occupancy and line |
@@ -333,7 +333,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
 
     def set_circuit_values(self, values: Any) -> None:
         """Change the circuits' values from now on (a priority change): deliveries completed after
-        this call are paid `w_i / t` with the new `w_i`. `reset` restores the configured values."""
+        this call are paid with the new `w_i`. `reset` restores the configured values."""
         m = self.config.n_circuits
         ok = (
             isinstance(values, (list, tuple, np.ndarray))
@@ -430,10 +430,12 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         rewards = dict.fromkeys(self.agents, 0.0)
         self._last_task_time[:] = math.nan
         unit = TIME_UNITS[self.options.reward_time_unit]
+        per_value = self.options.reward == "value"
         values = self.sim.tasks.values
         for c in out.completions:
             agent = self.possible_agents[c.robot]
-            rewards[agent] += float(values[c.circuit] / (c.task_time_s * unit))
+            w = values[c.circuit]
+            rewards[agent] += float(w if per_value else w / (c.task_time_s * unit))
             self.delivered_value += float(values[c.circuit] / values.max())
             self._last_task_time[c.robot] = float(c.task_time_s)
             self._last_task_by_circuit[c.robot, c.circuit] = float(c.task_time_s)

@@ -29,6 +29,9 @@ AGENT_NAMES = ("index", "speed_class")
 # A speed-class label usable as an agent-name prefix: TorchRL and BenchMARL group agents by the part
 # of the name before its first "_", so a label must not contain one
 _CLASS_LABEL = re.compile(r"[A-Za-z][A-Za-z0-9-]*")
+# What a delivery on circuit i pays: the paper's w_i / t, or w_i itself (whose undiscounted return,
+# summed over robots, is the delivered value: docs/semi_mdp.md)
+REWARDS = ("paper", "value")
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,9 @@ class EnvOptions:
         decision_interval_s: None for event-driven stepping, else the fixed simulated time per step
             (a whole number of physics steps).
         reward_time_unit: "ms" (default, the paper's scale) or "s" for t in `w / t`.
+        reward: what a delivery on circuit i pays: "paper" (default, Equation 2: `w_i / t`) or
+            "value" (`w_i`, so that the robots' undiscounted returns add up to the delivered
+            value; `reward_time_unit` plays no part). See docs/semi_mdp.md.
         step_cap_s: event-driven steps return after at most this much simulated time.
         jam_window_s: the jam detector's window: no task event for this long while no moving
             robot gets 1 m from where it was is a jam, reported as `jammed` in every info
@@ -60,6 +66,7 @@ class EnvOptions:
     max_sim_time_s: float = 24 * 3600.0
     decision_interval_s: float | None = None
     reward_time_unit: str = "ms"
+    reward: str = "paper"
     step_cap_s: float = 600.0
     jam_window_s: float = JAM_WINDOW_S
     observation_mode: str = "paper"
@@ -100,6 +107,12 @@ class EnvOptions:
             "reward_time_unit",
             self.reward_time_unit,
             str(list(TIME_UNITS)),
+        )
+        require(
+            isinstance(self.reward, str) and self.reward in REWARDS,
+            "reward",
+            self.reward,
+            f"{list(REWARDS)} (paper: w_i / t per delivery; value: w_i per delivery)",
         )
         require(
             is_number(self.step_cap_s) and self.step_cap_s > 0,

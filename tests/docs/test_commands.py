@@ -49,12 +49,19 @@ BASH = [b for p in documentation_files() for b in fenced_blocks(p)[0] if b.langu
 
 def example_options(script: Path) -> set[str]:
     """The options of an example of docs/examples (its `train` parameters and `RunOptions`'
-    fields, as flags), read from its source: the deep-learning libraries it imports need not be
-    installed."""
+    fields, or the fields of its `Settings` where it has one, as flags), read from its source:
+    the deep-learning libraries it imports need not be installed."""
     tree = ast.parse(script.read_text(encoding="utf-8"))
     train = next(n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "train")
-    names = {a.arg for a in train.args.args} - {"options"}
+    names = {a.arg for a in train.args.args} - {"options", "settings"}
     names |= {f.name for f in dataclasses.fields(RunOptions)}
+    for node in tree.body:  # a tyro-style example: the fields of its Settings are its flags
+        if isinstance(node, ast.ClassDef) and node.name == "Settings":
+            names |= {
+                s.target.id
+                for s in node.body
+                if isinstance(s, ast.AnnAssign) and isinstance(s.target, ast.Name)
+            }
     return {"--" + n.replace("_", "-") for n in names}
 
 

@@ -138,6 +138,9 @@ ENV_ARGUMENTS: dict[str, st.SearchStrategy[Any]] = {
     "max_sim_time_s": st.one_of(NOT_A_NUMBER, st.floats(-10.0, 1e20), st.integers(-5, 10**9)),
     "decision_interval_s": st.one_of(NOT_A_NUMBER, st.floats(-1.0, 1e300), st.integers(-2, 10)),
     "reward_time_unit": st.one_of(st.text(max_size=3), st.just(["ms"]), st.just({}), st.none()),
+    "reward": st.one_of(
+        st.sampled_from(["paper", "value", "Value"]), st.text(max_size=5), st.none()
+    ),
     "step_cap_s": st.one_of(NOT_A_NUMBER, st.floats(-1.0, 1e20), st.integers(-2, 10**6)),
     "jam_window_s": st.one_of(NOT_A_NUMBER, st.floats(-1.0, 1e9), st.integers(-2, 10**6)),
 }

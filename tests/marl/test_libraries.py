@@ -190,3 +190,38 @@ def test_sb3_shared_policy_vec_env_masks_and_the_maskable_ppo_example(tmp_path: 
     with torch.no_grad():
         logits = model.policy.get_distribution(torch.as_tensor(x)).distribution.logits.numpy()
     assert_same_policy(sb3.network(model), logits, x)
+
+
+# -- the CleanRL-style semi-MDP example (PyTorch only) -----------------------------------------------
+def test_cleanrl_smdp_ippo_trains_and_prints_its_table(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("torch")
+    import torch
+
+    ippo = example("cleanrl_smdp_ippo")
+    settings = ippo.Settings(
+        total_hours=0.5,
+        rollout_hours=0.25,
+        eval_hours=0.2,
+        eval_seeds=(1, 2),
+        out=tmp_path / "t.md",
+    )
+    agent, table = ippo.train(settings)
+    printed = capsys.readouterr().out
+    assert "update 2/2" in printed and table in printed
+    assert (tmp_path / "t.md").read_text() == table + "\n"
+    rows = {
+        cells[0]: [float(c) for c in cells[1:]]
+        for line in table.split("\n\n")[1].splitlines()[2:]
+        for cells in [[c.strip() for c in line.strip("|").split("|")]]
+    }
+    assert set(rows) == {"random", "stay", "static (model optimum)", "ippo greedy", "ippo sampled"}
+    assert all(np.isfinite(v).all() for v in rows.values())
+    assert rows["random"][2] == 0.0 and rows["static (model optimum)"][2] == 1.0
+    assert 300_000 < rows["stay"][0] < 700_000  # value / h of six robots
+    assert all(torch.isfinite(p).all() for p in agent.parameters())
+    assert table.count("| robot_") == 12  # the policy, by robot and last circuit
+    assert ippo.train(settings)[1] == table  # seeded: the same run again
+    with pytest.raises(ValueError, match=r"^rollout_hours = 2\.0 is invalid; allowed: at most"):
+        ippo.Settings(total_hours=1.0, rollout_hours=2.0)

@@ -21,6 +21,7 @@ def test_defaults_are_the_documented_ones() -> None:
     assert options.decision_interval_s is None
     assert (options.reward_time_unit, options.step_cap_s, options.jam_window_s) == ("ms", 600, 600)
     assert (options.observation_mode, options.observation_format) == ("paper", "dict")
+    assert options.reward == "paper"
     assert options.render_mode is None
     assert options.changed() == {}
 
@@ -33,6 +34,8 @@ def test_defaults_are_the_documented_ones() -> None:
         ({"max_sim_time_s": math.nan}, r"^max_sim_time_s = nan is invalid; allowed: a time >="),
         ({"decision_interval_s": -5.0}, r"^decision_interval_s = -5\.0 is invalid; allowed: None"),
         ({"reward_time_unit": "h"}, r"^reward_time_unit = 'h' is invalid; allowed: \['ms', 's'\]"),
+        ({"reward": "rate"}, r"^reward = 'rate' is invalid; allowed: \['paper', 'value'\]"),
+        ({"reward": None}, r"^reward = None is invalid"),
         ({"step_cap_s": math.inf}, r"^step_cap_s = inf is invalid; allowed: a finite time"),
         ({"jam_window_s": 0.0}, r"^jam_window_s = 0\.0 is invalid"),
         ({"observation_mode": "full"}, r"^observation_mode = 'full' is invalid"),
