@@ -257,6 +257,7 @@ def draw(
         ax.axvline(1.0, color="grey", lw=0.5, ls="--")
         ax.set_title(key if key == "suite" else SCENARIOS[key].id.removeprefix("tavc/"), fontsize=8)
         ax.set_xlabel("IQM score", fontsize=8)
+        ax.set_ylabel("allocator", fontsize=8)
     first = np.atleast_1d(axes)[0]
     first.set_yticks(y)
     first.set_yticklabels(order, fontsize=8)
