@@ -1,0 +1,439 @@
+"""N arenas stepped together, in worker processes, with every result stacked into arrays.
+
+`BatchedArenaEnv(n_envs, workers=w, env_kwargs={...})` holds `n_envs` copies of the arena (each
+built by `make_env(**env_kwargs)`, by default `tavc_env.parallel_env`), split into `w` contiguous
+groups, one per worker process (`workers=0`: all in this process, for debugging and for one
+arena). A step sends each worker its groups' actions and returns, with `N = n_envs` and `n` robots:
+
+- `observations`: `(N, n, k)` float32, the env's observation vector of every robot;
+- `rewards`: `(N, n)` float64; `terminated`, `truncated`: `(N,)` bool (a whole arena ends at once);
+- `infos`: a dict of arrays: every info field of the env, `(N, n)` (`action_required` is who must
+  decide next, `elapsed_s`, `task_time_s`, `sim_time_s`, ...), and `action_mask` `(N, n, m)` int8.
+  `BatchedStep.must_decide` and `.action_masks` name the two a loop needs.
+
+This is the layout of CleanRL's loops and of TorchRL's batched multi-agent tensors. Actions are an
+integer array `(N, n)`; only entries of robots that must decide are read (others may hold anything,
+e.g. a masked sample). **Autoreset, same step** (`AutoresetMode.SAME_STEP`): an arena whose episode
+ends in a step is reset at once (its generator continues, so the run stays reproducible); the step
+returns the new episode's first observations and infos (every robot deciding), the finished
+episode's reward and `truncated`, and its last observations and infos in `infos["final_obs"]` and
+`infos["final_info"]` (rows of other arenas zero), flagged by `infos["_final_obs"]` `(N,)`, as
+Gymnasium names them. So no step is spent on a reset and every returned step has someone deciding.
+
+`reset(seed)` derives one seed per arena from `seed` (`numpy.random.SeedSequence(seed).spawn`), so
+the same seed gives the same arrays whatever the number of workers. Workers exchange pickled numpy
+arrays through pipes: a step's arrays are a few hundred bytes, so shared memory would save
+microseconds on steps of a millisecond (`benchmarks/vector_throughput.py`). An exception in a worker
+is raised in this process as `WorkerError` with the worker's traceback, and the batch is closed;
+workers exit when this process closes them or dies (their pipe ends).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import multiprocessing.connection
+import traceback
+import weakref
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, ClassVar, NamedTuple
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+
+from tavc_env._validation import is_integer, require
+from tavc_env.env import ArenaEnv, parallel_env
+
+Arrays = dict[str, Any]  # field -> stacked array; "final_info" -> dict of stacked arrays
+EnvFactory = Callable[..., ArenaEnv[Any]]
+
+
+class WorkerError(RuntimeError):
+    """An exception raised in a worker process; its message carries the worker's traceback."""
+
+
+class BatchedStep(NamedTuple):
+    """What `BatchedArenaEnv.step` returns; unpacks as Gymnasium's five values."""
+
+    observations: np.ndarray
+    rewards: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    infos: Arrays
+
+    @property
+    def must_decide(self) -> np.ndarray:
+        """`(N, n)` bool: the robots whose action the next step reads."""
+        mask: np.ndarray = self.infos["action_required"]
+        return mask
+
+    @property
+    def action_masks(self) -> np.ndarray:
+        """`(N, n, m)` int8: the circuits each robot may choose (all, for a deciding robot)."""
+        mask: np.ndarray = self.infos["action_mask"]
+        return mask
+
+
+class ArenaGroup:
+    """Some arenas stepped in turn, their results stacked: the work of one worker (or of the
+    in-process mode). Knows nothing of processes."""
+
+    def __init__(self, make_env: EnvFactory, env_kwargs: Mapping[str, Any], count: int) -> None:
+        self.envs = [make_env(**env_kwargs) for _ in range(count)]
+        self.agents = list(self.envs[0].possible_agents)
+        self._deciding = np.zeros((count, len(self.agents)), bool)
+
+    def reset(self, seeds: Sequence[int | None]) -> Arrays:
+        rows = [self._row(*env.reset(seed=seed)) for env, seed in zip(self.envs, seeds)]
+        return self._stack(rows, {})
+
+    def step(self, actions: np.ndarray) -> Arrays:
+        rows, finals = [], {}
+        for e, env in enumerate(self.envs):
+            chosen = {
+                agent: int(a)
+                for agent, a, deciding in zip(self.agents, actions[e], self._deciding[e])
+                if deciding
+            }
+            obs, rewards, terminations, truncations, infos = env.step(chosen)
+            row = self._row(obs, infos)
+            row["rewards"] = np.array([rewards[a] for a in self.agents])
+            row["terminated"] = np.bool_(any(terminations.values()))
+            row["truncated"] = np.bool_(any(truncations.values()))
+            if not env.agents:  # the episode ended: same-step autoreset
+                finals[e] = row
+                row = {**self._row(*env.reset()), **{k: row[k] for k in _STEP_ONLY}}
+            rows.append(row)
+        return self._stack(rows, finals)
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+    def _row(self, obs: Mapping[str, Any], infos: Mapping[str, Mapping[str, Any]]) -> Arrays:
+        """One arena's observations and infos, robot by robot, as arrays."""
+        first = obs[self.agents[0]]
+        if isinstance(first, Mapping):  # observation_format="dict"
+            vectors = [obs[a]["observation"] for a in self.agents]
+            masks = [obs[a]["action_mask"] for a in self.agents]
+        else:  # "box": the mask is in the infos
+            vectors = [obs[a] for a in self.agents]
+            masks = [infos[a]["action_mask"] for a in self.agents]
+        row = {"observations": np.stack(vectors).astype(np.float32), "action_mask": np.stack(masks)}
+        for key in infos[self.agents[0]]:
+            if key != "action_mask":
+                row[key] = np.array([infos[a][key] for a in self.agents])
+        return row
+
+    def _stack(self, rows: list[Arrays], finals: Mapping[int, Arrays]) -> Arrays:
+        out = {key: np.stack([row[key] for row in rows]) for key in rows[0]}
+        self._deciding = out["action_required"]
+        if "rewards" in out:
+            done = np.zeros(len(rows), bool)
+            done[list(finals)] = True
+            final = {
+                key: np.stack([finals[e][key] if e in finals else np.zeros_like(row[key])
+                               for e, row in enumerate(rows)])
+                for key in rows[0]
+                if key not in _STEP_ONLY
+            }
+            out["_final"] = done
+            out["final"] = final
+        return out
+
+
+_STEP_ONLY = ("rewards", "terminated", "truncated")
+
+
+def _serve(
+    connection: multiprocessing.connection.Connection,
+    parent_end: multiprocessing.connection.Connection | None,
+    make_env: EnvFactory,
+    env_kwargs: Mapping[str, Any],
+    count: int,
+) -> None:
+    """A worker: build `count` arenas, then answer reset/step/close messages until told to close
+    or until the parent's end of the pipe closes (the parent died)."""
+    if parent_end is not None:
+        parent_end.close()  # a forked copy of the parent's end would keep the pipe open forever
+    group: ArenaGroup | None = None
+    try:
+        group = ArenaGroup(make_env, env_kwargs, count)
+        connection.send(("ok", None))
+        while True:
+            try:
+                command, argument = connection.recv()
+            except EOFError:
+                break  # the parent is gone: nobody to answer
+            if command == "close":
+                connection.send(("ok", None))
+                break
+            result = group.reset(argument) if command == "reset" else group.step(argument)
+            connection.send(("ok", result))
+    except (KeyboardInterrupt, BrokenPipeError):
+        pass  # interrupted with the parent, or the parent is gone: nothing to report to
+    except BaseException:
+        try:
+            connection.send(("error", traceback.format_exc()))
+        except (OSError, EOFError):
+            pass
+    finally:
+        if group is not None:
+            group.close()
+        connection.close()
+
+
+class _Workers:
+    """The worker processes and their pipes; closing twice does nothing."""
+
+    def __init__(
+        self,
+        make_env: EnvFactory,
+        env_kwargs: Mapping[str, Any],
+        counts: Sequence[int],
+        start_method: str | None,
+    ) -> None:
+        context = multiprocessing.get_context(start_method)
+        self.connections: list[multiprocessing.connection.Connection] = []
+        self.processes: list[multiprocessing.process.BaseProcess] = []
+        for count in counts:
+            parent_end, child_end = context.Pipe()
+            process = context.Process(
+                target=_serve,
+                args=(child_end, parent_end, make_env, dict(env_kwargs), count),
+                daemon=True,  # ended with this process if it exits without closing us
+            )
+            process.start()
+            child_end.close()
+            self.connections.append(parent_end)
+            self.processes.append(process)
+        self.closed = False
+        self.gather()  # every worker built its arenas (or its error is raised here)
+
+    def send(self, messages: Sequence[tuple[str, Any]]) -> None:
+        for connection, message in zip(self.connections, messages):
+            connection.send(message)
+
+    def gather(self) -> list[Any]:
+        """Every worker's answer, in order; the first worker error closes all and is raised."""
+        answers, errors = [], []
+        for w, connection in enumerate(self.connections):
+            try:
+                status, payload = connection.recv()
+            except (EOFError, OSError) as exc:
+                status, payload = "error", f"the worker process ended unexpectedly ({exc!r})"
+            if status == "error":
+                errors.append(f"worker {w} of {len(self.connections)} failed:\n{payload}")
+            answers.append(payload)
+        if errors:
+            self.close(polite=False)
+            raise WorkerError("\n".join(errors))
+        return answers
+
+    def close(self, polite: bool = True) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        if polite:
+            for connection in self.connections:
+                try:
+                    connection.send(("close", None))
+                    connection.recv()
+                except (OSError, EOFError):
+                    pass
+        for process in self.processes:
+            process.join(timeout=5 if polite else 0.5)
+            if process.is_alive():
+                process.terminate()
+                process.join(timeout=5)
+        for connection in self.connections:
+            connection.close()
+
+
+class BatchedArenaEnv:
+    """`n_envs` arenas stepped together, results stacked (see the module's docstring).
+
+    Args:
+        n_envs: arenas in the batch (`N`).
+        workers: worker processes, the arenas split among them as evenly as possible; 0 steps
+            every arena in this process. Several arenas per worker spread the cost of the pipes.
+        env_kwargs: arguments of `make_env` (e.g. `preset`, `max_sim_time_s`,
+            `observation_mode`); every arena gets the same.
+        make_env: builds one arena, an `ArenaEnv` (default `tavc_env.parallel_env`; the twin's
+            `twin_parallel_env` works too). With the `spawn` start method it must be importable
+            (a module-level function), as multiprocessing sends it by name.
+        start_method: multiprocessing's (`fork`, `spawn`, `forkserver`); None: the platform's
+            default.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def __init__(
+        self,
+        n_envs: int,
+        *,
+        workers: int = 0,
+        env_kwargs: Mapping[str, Any] | None = None,
+        make_env: EnvFactory = parallel_env,
+        start_method: str | None = None,
+    ) -> None:
+        require(is_integer(n_envs) and n_envs >= 1, "n_envs", n_envs, "an integer >= 1")
+        require(
+            is_integer(workers) and 0 <= workers <= n_envs,
+            "workers",
+            workers,
+            f"an integer in [0, n_envs = {n_envs}] (0: every arena in this process)",
+        )
+        require(
+            env_kwargs is None or isinstance(env_kwargs, Mapping),
+            "env_kwargs",
+            env_kwargs,
+            "None or a mapping of arguments of make_env",
+        )
+        require(callable(make_env), "make_env", make_env, "a function returning an ArenaEnv")
+        methods = multiprocessing.get_all_start_methods()
+        require(
+            start_method is None or start_method in methods,
+            "start_method",
+            start_method,
+            f"None or one of {methods}",
+        )
+        kwargs = dict(env_kwargs or {})
+        # one arena built here first: a bad argument is the env's own ValueError, raised here
+        probe = make_env(**kwargs)
+        require(isinstance(probe, ArenaEnv), "make_env", make_env, "a function returning an ArenaEnv")
+        self.n_envs = int(n_envs)
+        self.workers = int(workers)
+        self.possible_agents = list(probe.possible_agents)
+        self.n_agents = len(self.possible_agents)
+        self.n_circuits = probe.config.n_circuits
+        vector = probe.observation_space(self.possible_agents[0])
+        if isinstance(vector, spaces.Dict):
+            vector = vector["observation"]
+        assert isinstance(vector, spaces.Box)
+        self.single_observation_space: spaces.Box = vector
+        self.single_action_space = spaces.Discrete(self.n_circuits)
+        self.observation_space = spaces.Box(
+            np.broadcast_to(vector.low, (self.n_envs, self.n_agents, *vector.shape)),
+            np.broadcast_to(vector.high, (self.n_envs, self.n_agents, *vector.shape)),
+            dtype=np.float32,
+        )
+        self.action_space = spaces.MultiDiscrete(
+            np.full((self.n_envs, self.n_agents), self.n_circuits)
+        )
+        probe.close()
+        counts = [len(part) for part in np.array_split(np.arange(self.n_envs), max(workers, 1))]
+        self._bounds = np.cumsum([0, *counts])
+        self._deciding: np.ndarray | None = None  # None until reset
+        self._local: ArenaGroup | None = None
+        self._workers: _Workers | None = None
+        if workers == 0:
+            self._local = ArenaGroup(make_env, kwargs, self.n_envs)
+        else:
+            self._workers = _Workers(make_env, kwargs, counts, start_method)
+            self._finalizer = weakref.finalize(self, self._workers.close)
+        self.closed = False
+
+    def reset(self, seed: int | None = None) -> tuple[np.ndarray, Arrays]:
+        """Reset every arena: with `seed`, arena `i` from the `i`-th seed spawned from it; without,
+        each continues its own stream (the first reset without a seed draws fresh entropy)."""
+        self._check_open()
+        require(
+            seed is None or (is_integer(seed) and seed >= 0),
+            "seed",
+            seed,
+            "None or an integer >= 0 (int or numpy integer; not bool, not float)",
+        )
+        seeds: list[int | None] = [None] * self.n_envs
+        if seed is not None or self._deciding is None:
+            children = np.random.SeedSequence(None if seed is None else int(seed)).spawn(self.n_envs)
+            seeds = [int(child.generate_state(1)[0]) for child in children]
+        parts = self._run("reset", [seeds[a:b] for a, b in self._spans()])
+        out = _concatenate(parts)
+        self._deciding = out["action_required"]
+        observations = out.pop("observations")
+        return observations, out
+
+    def step(self, actions: Any) -> BatchedStep:
+        """Step every arena with `actions` `(N, n)` (integers; only deciding robots' are read)."""
+        self._check_open()
+        if self._deciding is None:
+            raise ValueError("step() called before reset(); allowed: call reset() first")
+        chosen = self._checked_actions(actions, self._deciding)
+        parts = self._run("step", [chosen[a:b] for a, b in self._spans()])
+        out = _concatenate(parts)
+        self._deciding = out["action_required"]
+        observations = out.pop("observations")
+        rewards, terminated, truncated = (out.pop(k) for k in _STEP_ONLY)
+        final = out.pop("final")
+        out["_final_obs"] = out["_final_info"] = out.pop("_final")
+        out["final_obs"] = final.pop("observations")
+        out["final_info"] = final
+        return BatchedStep(observations, rewards, terminated, truncated, out)
+
+    def close(self) -> None:
+        """Close every arena and end the workers; closing again does nothing."""
+        if self.closed:
+            return
+        self.closed = True
+        if self._workers is not None:
+            self._finalizer()
+        if self._local is not None:
+            self._local.close()
+
+    def __enter__(self) -> BatchedArenaEnv:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- helpers ---------------------------------------------------------------------------------
+    def _spans(self) -> list[tuple[int, int]]:
+        return [(int(a), int(b)) for a, b in zip(self._bounds[:-1], self._bounds[1:])]
+
+    def _run(self, command: str, arguments: list[Any]) -> list[Arrays]:
+        if self._local is not None:
+            local = self._local.reset if command == "reset" else self._local.step
+            return [local(arguments[0])]
+        assert self._workers is not None
+        self._workers.send([(command, argument) for argument in arguments])
+        try:
+            answers: list[Arrays] = self._workers.gather()
+        except WorkerError:
+            self.closed = True
+            raise
+        return answers
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise ValueError("the batched env is closed; allowed: a new BatchedArenaEnv")
+
+    def _checked_actions(self, actions: Any, deciding: np.ndarray) -> np.ndarray:
+        """`actions` as an int64 array `(N, n)`, or a ValueError naming the first bad entry of a
+        robot that must decide (the others are not read)."""
+        shape = (self.n_envs, self.n_agents)
+        array = np.asarray(actions)
+        require(
+            array.shape == shape and array.dtype.kind in "iu",
+            "actions",
+            f"array of shape {array.shape} and dtype {array.dtype}",
+            f"an integer array of shape {shape}",
+        )
+        m = self.n_circuits
+        bad = deciding & ((array < 0) | (array >= m))
+        if bad.any():
+            e, i = (int(x) for x in np.argwhere(bad)[0])
+            require(False, f"actions[{e}, {i}]", int(array[e, i]),
+                    f"a circuit index in [0, {m - 1}] (robot {i} of arena {e} must decide)")
+        return array.astype(np.int64)
+
+
+def _concatenate(parts: list[Arrays]) -> Arrays:
+    """The workers' stacked arrays joined along the arena axis (nested dicts alike)."""
+    if len(parts) == 1:
+        return parts[0]
+    return {
+        key: _concatenate([p[key] for p in parts]) if isinstance(value, dict)
+        else np.concatenate([p[key] for p in parts])
+        for key, value in parts[0].items()
+    }
