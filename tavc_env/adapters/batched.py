@@ -371,6 +371,13 @@ class BatchedArenaEnv:
         out["final_info"] = final
         return BatchedStep(observations, rewards, terminated, truncated, out)
 
+    @property
+    def worker_pids(self) -> list[int]:
+        """The process ids of the workers (none in-process)."""
+        if self._workers is None:
+            return []
+        return [p.pid for p in self._workers.processes if p.pid is not None]
+
     def close(self) -> None:
         """Close every arena and end the workers; closing again does nothing."""
         if self.closed:

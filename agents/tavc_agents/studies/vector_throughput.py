@@ -1,0 +1,318 @@
+"""Decisions per second of the vectorised views against their one-process figure, in wall time.
+
+Cases, all in one run, taking turns round after round (`repeats`), each from a fixed seed:
+
+* `gymnasium.make_vec("tavc/dahl2004-v0", k, vectorization_mode=...)`, the single-robot view
+  (`tavc_agents.envs.single_robot`): sync with 1 env, async with 1 and with 2 (one worker process
+  each). A decision is one step of one sub-env (one of the learner's tasks; the reset steps of
+  NEXT_STEP autoreset are not counted);
+* `tavc_env.adapters.batched.BatchedArenaEnv`, the batched multi-agent view: every arena in this
+  process, and 1 and 2 worker processes with `arenas_per_worker` arenas each. A decision is a
+  `must_decide` entry (a robot whose action the step read).
+
+Random actions from a seeded generator; the timed part is the stepping loop alone (construction,
+worker start-up and reset are not timed). Processes run side by side, so the figure is decisions
+per wall second; CPU seconds of this process and of the workers (from /proc) are recorded too, with
+the machine's load average. Ratios are to the 1-worker figure of the same round (async 1 for
+make_vec, 1 worker for the batched view). Goal (issue 26): make_vec async 2 >= 1.6 x async 1.
+The script is `benchmarks/vector_throughput.py`; outputs `vector_throughput.{md,csv,json}`.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+import tavc_agents.envs  # noqa: F401  (registers the Gymnasium ids)
+from tavc_agents.analysis.reports import Report, markdown_table
+from tavc_agents.experiments.provenance import run_metadata
+from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, at_least, positive
+from tavc_env._validation import require
+from tavc_env.adapters.batched import BatchedArenaEnv
+
+GYM_ID = "tavc/dahl2004-v0"
+GOAL = 1.6  # make_vec async 2 over async 1 (issue 26), decisions per wall second
+Row = dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One configuration timed: a view, how it is vectorised and over how many processes."""
+
+    name: str
+    view: str  # "make_vec" or "batched"
+    mode: str  # make_vec: "sync" / "async"; batched: "in-process" / "workers"
+    envs: int  # sub-envs (make_vec) or arenas (batched)
+    workers: int  # worker processes (0: none)
+    baseline: str  # the case its ratio is taken to
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(SweepOptions):
+    """The vector throughput benchmark's settings (its command line). The cases run one at a
+    time in this process and its workers, so `workers` can only be 1 and `backend` local."""
+
+    repeats: int = 5
+    """rounds (every case once per round)"""
+    steps: int = 400
+    """timed vector steps per case and round"""
+    arenas_per_worker: int = 4
+    """arenas of each batched worker (several spread the cost of the pipes)"""
+    episode_s: float = 4 * 3600.0
+    """simulated seconds of an episode (long: resets are rare)"""
+    quick: bool = False
+    """smoke run: 2 rounds of 20 steps, 1-hour episodes"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        checks = [
+            ("repeats", at_least(self.repeats, 1), "an integer >= 1"),
+            ("steps", at_least(self.steps, 1), "an integer >= 1"),
+            ("arenas_per_worker", at_least(self.arenas_per_worker, 1), "an integer >= 1"),
+            ("episode_s", positive(self.episode_s), "a duration > 0 s"),
+        ]
+        for name, ok, allowed in checks:
+            require(ok, name, getattr(self, name), allowed)
+        require(
+            self.workers in (None, 1) and self.backend == "local",
+            "workers",
+            self.workers,
+            "1 (or unset) and backend local: the cases choose their own processes",
+        )
+
+    @property
+    def rounds(self) -> int:
+        return 2 if self.quick else self.repeats
+
+    @property
+    def timed_steps(self) -> int:
+        return 20 if self.quick else self.steps
+
+    @property
+    def episode_length_s(self) -> float:
+        return 3600.0 if self.quick else self.episode_s
+
+    @property
+    def cases(self) -> list[Case]:
+        k = self.arenas_per_worker
+        one_env, one_worker = "make_vec async, 1 env", f"batched 1 worker x {k} arenas"
+        return [
+            Case("make_vec sync, 1 env", "make_vec", "sync", 1, 0, one_env),
+            Case(one_env, "make_vec", "async", 1, 1, one_env),
+            Case("make_vec async, 2 envs", "make_vec", "async", 2, 2, one_env),
+            Case(f"batched in-process, {k} arenas", "batched", "in-process", k, 0, one_worker),
+            Case(one_worker, "batched", "workers", k, 1, one_worker),
+            Case(f"batched 2 workers x {k} arenas", "batched", "workers", 2 * k, 2, one_worker),
+        ]
+
+    def reference_dir(self) -> Path:
+        return RESULTS_DIR / "vector_throughput"
+
+    def recorded(self) -> dict[str, Any]:
+        return {
+            "repeats": self.rounds,
+            "steps": self.timed_steps,
+            "arenas_per_worker": self.arenas_per_worker,
+            "episode_s": self.episode_length_s,
+            "quick": self.quick,
+        }
+
+
+def process_cpu_s(pids: Sequence[int]) -> float:
+    """CPU seconds (user + system) the processes `pids` have used so far, from /proc (Linux);
+    NaN where /proc cannot tell."""
+    ticks = os.sysconf("SC_CLK_TCK")
+    total = 0.0
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/stat", encoding="ascii") as fh:
+                fields = fh.read().rpartition(")")[2].split()
+        except OSError:
+            return float("nan")
+        total += (int(fields[11]) + int(fields[12])) / ticks  # utime, stime
+    return total
+
+
+def own_cpu_s() -> float:
+    t = os.times()
+    return t.user + t.system
+
+
+def time_make_vec(case: Case, seed: int, steps: int, episode_s: float) -> Row:
+    """`steps` vector steps of the single-robot view vectorised by `gymnasium.make_vec`."""
+    envs = gymnasium.make_vec(GYM_ID, case.envs, vectorization_mode=case.mode, episode_s=episode_s)
+    try:
+        pids = [p.pid for p in getattr(envs, "processes", []) if p.pid is not None]
+        rng = np.random.default_rng([seed, 1])
+        envs.reset(seed=seed)
+        resetting = np.zeros(case.envs, bool)  # NEXT_STEP: this step resets those sub-envs
+        decisions = 0
+        cpu, workers_cpu, started = own_cpu_s(), process_cpu_s(pids), time.perf_counter()
+        for _ in range(steps):
+            decisions += int((~resetting).sum())
+            _, _, terminated, truncated, _ = envs.step(rng.integers(0, 2, case.envs))
+            resetting = terminated | truncated
+        wall = time.perf_counter() - started
+        cpu, workers_cpu = own_cpu_s() - cpu, process_cpu_s(pids) - workers_cpu
+    finally:
+        envs.close()
+    return {"decisions": decisions, "wall_s": wall, "cpu_s": cpu, "workers_cpu_s": workers_cpu}
+
+
+def time_batched(case: Case, seed: int, steps: int, episode_s: float) -> Row:
+    """`steps` steps of the batched multi-agent view."""
+    env_kwargs = {"preset": "dahl2004", "max_sim_time_s": episode_s}
+    with BatchedArenaEnv(case.envs, workers=case.workers, env_kwargs=env_kwargs) as batch:
+        pids = batch.worker_pids
+        rng = np.random.default_rng([seed, 2])
+        _, infos = batch.reset(seed=seed)
+        must_decide = infos["action_required"]
+        shape = (batch.n_envs, batch.n_agents)
+        decisions = 0
+        cpu, workers_cpu, started = own_cpu_s(), process_cpu_s(pids), time.perf_counter()
+        for _ in range(steps):
+            decisions += int(must_decide.sum())
+            must_decide = batch.step(rng.integers(0, batch.n_circuits, shape)).must_decide
+        wall = time.perf_counter() - started
+        cpu, workers_cpu = own_cpu_s() - cpu, process_cpu_s(pids) - workers_cpu
+    return {"decisions": decisions, "wall_s": wall, "cpu_s": cpu, "workers_cpu_s": workers_cpu}
+
+
+def measure(s: Settings) -> list[Row]:
+    """Every case once per round, in turn, after one untimed warm-up of each view."""
+    time_make_vec(s.cases[0], 0, 5, s.episode_length_s)  # imports, compiled caches
+    time_batched(s.cases[3], 0, 5, s.episode_length_s)
+    rows: list[Row] = []
+    started = time.perf_counter()
+    for rep in range(s.rounds):
+        for case in s.cases:
+            timer = time_make_vec if case.view == "make_vec" else time_batched
+            load = os.getloadavg()[0]
+            found = timer(case, rep, s.timed_steps, s.episode_length_s)
+            found["decisions_per_s"] = found["decisions"] / found["wall_s"]
+            rows.append(
+                {
+                    "case": case.name,
+                    "view": case.view,
+                    "mode": case.mode,
+                    "envs": case.envs,
+                    "workers": case.workers,
+                    "repeat": rep,
+                    "load_1min": load,
+                    **found,
+                }
+            )
+        print(f"round {rep + 1} done ({time.perf_counter() - started:.0f} s)", flush=True)
+    return rows
+
+
+def ratios(rows: Sequence[Row], case: Case) -> list[float]:
+    """The case's decisions per second over its baseline's, paired by round."""
+    mine = {r["repeat"]: r["decisions_per_s"] for r in rows if r["case"] == case.name}
+    theirs = {r["repeat"]: r["decisions_per_s"] for r in rows if r["case"] == case.baseline}
+    return [mine[k] / theirs[k] for k in sorted(mine)]
+
+
+def median_range(values: Sequence[float], digits: int) -> str:
+    return (
+        f"{np.median(values):.{digits}f} [{min(values):.{digits}f}, {max(values):.{digits}f}]"
+    )
+
+
+HEADER = [
+    "case",
+    "processes",
+    "decisions / wall s",
+    "ratio to 1 worker",
+    "wall s",
+    "CPU s (this process + workers)",
+    "load (1 min)",
+    "goal",
+]
+
+
+def build_report(rows: Sequence[Row], s: Settings) -> Report:
+    table, summary = [], {}
+    for case in s.cases:
+        mine = [r for r in rows if r["case"] == case.name]
+        speed = [r["decisions_per_s"] for r in mine]
+        ratio = ratios(rows, case)
+        verdict = "-"
+        if case.name == "make_vec async, 2 envs":
+            ok = float(np.median(ratio)) >= GOAL
+            verdict = f"{'PASS' if ok else 'FAIL'} (>= {GOAL:g} x async 1)"
+        cpu = [r["cpu_s"] + (r["workers_cpu_s"] if case.workers else 0.0) for r in mine]
+        loads = [r["load_1min"] for r in mine]
+        table.append(
+            [
+                case.name,
+                f"1 + {case.workers}" if case.workers else "1",
+                median_range(speed, 0),
+                median_range(ratio, 2),
+                median_range([r["wall_s"] for r in mine], 2),
+                median_range(cpu, 2),
+                f"{min(loads):.1f}-{max(loads):.1f}",
+                verdict,
+            ]
+        )
+        summary[case.name] = {
+            "decisions_per_s": float(np.median(speed)),
+            "ratio_to_one_worker": float(np.median(ratio)),
+            "ratio_range": [min(ratio), max(ratio)],
+            "load_1min": [min(loads), max(loads)],
+            "verdict": verdict,
+        }
+    body = "\n".join(
+        [
+            f"{s.rounds} rounds of {s.timed_steps} vector steps per case, median [min, max] over "
+            "rounds; the cases take turns within each round, from seed = round. Decisions per "
+            "*wall* second of the stepping loop (processes run side by side): for `make_vec` one "
+            f"decision is a step of one sub-env of `{GYM_ID}` (one of the learner's tasks, about "
+            "six arena steps; NEXT_STEP reset steps not counted); for the batched view a robot "
+            "whose action the step read (`must_decide`). The two views' figures are therefore not "
+            "comparable with each other; the ratios are to the 1-worker case of the same view and "
+            "round (async 1 env; 1 worker). CPU s: this process plus its workers (from /proc), "
+            f"over the timed loop. Episodes of {s.episode_length_s:g} simulated s, `dahl2004`, "
+            f"random actions. 'load' is the 1-minute load average before each case ({os.cpu_count()} "
+            "cores): other work on the machine takes cores from the workers and shrinks the ratios.",
+            "",
+            markdown_table(HEADER, table),
+        ]
+    )
+    return Report("vector_throughput", "Vectorised views: decisions per second", body, list(rows), summary)
+
+
+@dataclass
+class VectorThroughputOutcome(Outcome):
+    """The outcome, with the goals missed (the benchmark then exits with 1)."""
+
+    failed: list[str] = field(default_factory=list)
+
+
+def failure_lines(outcome: VectorThroughputOutcome) -> list[str]:
+    return [f"FAIL: {line}" for line in outcome.failed]
+
+
+def run(settings: Settings) -> VectorThroughputOutcome:
+    """Measure every case, then write the report."""
+    out = settings.out_dir()
+    provenance = run_metadata(settings=settings.recorded())
+    started = time.perf_counter()
+    rows = measure(settings)
+    provenance["wall_time_s"] = time.perf_counter() - started
+    report = build_report(rows, settings)
+    written = report.write(out, provenance)
+    failed = [
+        f"{name}: {found['verdict']}"
+        for name, found in report.summary.items()
+        if found["verdict"].startswith("FAIL")
+    ]
+    text = f"{report.body}\nwrote {out / 'vector_throughput.md'}"
+    return VectorThroughputOutcome(out, written, text, failed)
