@@ -89,7 +89,10 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
         )
         seed = None if seed is None else int(seed)
         super().reset(seed=seed)
-        streams = np.random.SeedSequence(seed).spawn(len(self.env.possible_agents) + 1)
+        # Without a seed the episode's streams come from the env's generator (seeded by the last
+        # seeded reset), so a run seeded once stays reproducible: vector envs autoreset so.
+        entropy = seed if seed is not None else int(self.np_random.integers(2**63))
+        streams = np.random.SeedSequence(entropy).spawn(len(self.env.possible_agents) + 1)
         policies = {}
         for agent, stream in zip(self.env.possible_agents, streams[1:]):
             if agent != self.robot:
