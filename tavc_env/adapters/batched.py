@@ -30,6 +30,7 @@ workers exit when this process closes them or dies (their pipe ends).
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import multiprocessing.connection
 import traceback
@@ -126,14 +127,18 @@ class ArenaGroup:
         return row
 
     def _stack(self, rows: list[Arrays], finals: Mapping[int, Arrays]) -> Arrays:
-        out = {key: np.stack([row[key] for row in rows]) for key in rows[0]}
+        out: Arrays = {key: np.stack([row[key] for row in rows]) for key in rows[0]}
         self._deciding = out["action_required"]
         if "rewards" in out:
             done = np.zeros(len(rows), bool)
             done[list(finals)] = True
             final = {
-                key: np.stack([finals[e][key] if e in finals else np.zeros_like(row[key])
-                               for e, row in enumerate(rows)])
+                key: np.stack(
+                    [
+                        finals[e][key] if e in finals else np.zeros_like(row[key])
+                        for e, row in enumerate(rows)
+                    ]
+                )
                 for key in rows[0]
                 if key not in _STEP_ONLY
             }
@@ -173,10 +178,8 @@ def _serve(
     except (KeyboardInterrupt, BrokenPipeError):
         pass  # interrupted with the parent, or the parent is gone: nothing to report to
     except BaseException:
-        try:
+        with contextlib.suppress(OSError, EOFError):  # the parent may be gone too
             connection.send(("error", traceback.format_exc()))
-        except (OSError, EOFError):
-            pass
     finally:
         if group is not None:
             group.close()
@@ -193,7 +196,7 @@ class _Workers:
         counts: Sequence[int],
         start_method: str | None,
     ) -> None:
-        context = multiprocessing.get_context(start_method)
+        context: Any = multiprocessing.get_context(start_method)  # typeshed's lacks Process
         self.connections: list[multiprocessing.connection.Connection] = []
         self.processes: list[multiprocessing.process.BaseProcess] = []
         for count in counts:
@@ -301,7 +304,9 @@ class BatchedArenaEnv:
         kwargs = dict(env_kwargs or {})
         # one arena built here first: a bad argument is the env's own ValueError, raised here
         probe = make_env(**kwargs)
-        require(isinstance(probe, ArenaEnv), "make_env", make_env, "a function returning an ArenaEnv")
+        require(
+            isinstance(probe, ArenaEnv), "make_env", make_env, "a function returning an ArenaEnv"
+        )
         self.n_envs = int(n_envs)
         self.workers = int(workers)
         self.possible_agents = list(probe.possible_agents)
@@ -346,7 +351,9 @@ class BatchedArenaEnv:
         )
         seeds: list[int | None] = [None] * self.n_envs
         if seed is not None or self._deciding is None:
-            children = np.random.SeedSequence(None if seed is None else int(seed)).spawn(self.n_envs)
+            children = np.random.SeedSequence(None if seed is None else int(seed)).spawn(
+                self.n_envs
+            )
             seeds = [int(child.generate_state(1)[0]) for child in children]
         parts = self._run("reset", [seeds[a:b] for a, b in self._spans()])
         out = _concatenate(parts)
@@ -430,8 +437,12 @@ class BatchedArenaEnv:
         bad = deciding & ((array < 0) | (array >= m))
         if bad.any():
             e, i = (int(x) for x in np.argwhere(bad)[0])
-            require(False, f"actions[{e}, {i}]", int(array[e, i]),
-                    f"a circuit index in [0, {m - 1}] (robot {i} of arena {e} must decide)")
+            require(
+                False,
+                f"actions[{e}, {i}]",
+                int(array[e, i]),
+                f"a circuit index in [0, {m - 1}] (robot {i} of arena {e} must decide)",
+            )
         return array.astype(np.int64)
 
 
@@ -440,7 +451,8 @@ def _concatenate(parts: list[Arrays]) -> Arrays:
     if len(parts) == 1:
         return parts[0]
     return {
-        key: _concatenate([p[key] for p in parts]) if isinstance(value, dict)
+        key: _concatenate([p[key] for p in parts])
+        if isinstance(value, dict)
         else np.concatenate([p[key] for p in parts])
         for key, value in parts[0].items()
     }

@@ -14,7 +14,7 @@ also pickles at any point (the arena replays its episode, DESIGN.md section 2.3)
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -40,7 +40,7 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
     # NEXT_STEP is what `make_vec` builds by default, so the declaration is what users get. It
     # suits a semi-MDP: the truncating step returns the episode's last observation itself (a
     # learner bootstraps from it), and the extra reset step has reward 0 and ignores its action.
-    metadata: ClassVar[dict[str, Any]] = {
+    metadata: dict[str, Any] = {  # noqa: RUF012 (Gymnasium declares it an instance variable)
         "render_modes": [],
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }

@@ -221,9 +221,7 @@ def ratios(rows: Sequence[Row], case: Case) -> list[float]:
 
 
 def median_range(values: Sequence[float], digits: int) -> str:
-    return (
-        f"{np.median(values):.{digits}f} [{min(values):.{digits}f}, {max(values):.{digits}f}]"
-    )
+    return f"{np.median(values):.{digits}f} [{min(values):.{digits}f}, {max(values):.{digits}f}]"
 
 
 HEADER = [
@@ -286,7 +284,9 @@ def build_report(rows: Sequence[Row], s: Settings) -> Report:
             markdown_table(HEADER, table),
         ]
     )
-    return Report("vector_throughput", "Vectorised views: decisions per second", body, list(rows), summary)
+    return Report(
+        "vector_throughput", "Vectorised views: decisions per second", body, list(rows), summary
+    )
 
 
 @dataclass

@@ -69,7 +69,7 @@ def test_shapes_dtypes_and_must_decide() -> None:
 def test_the_batch_is_the_plain_env_stepped_by_hand() -> None:
     """Arena i of the batch is `parallel_env` reset with the i-th seed spawned from the seed."""
     with BatchedArenaEnv(2, env_kwargs=SHORT) as batch:
-        obs, infos = batch.reset(seed=7)
+        obs, _ = batch.reset(seed=7)
         seed = int(np.random.SeedSequence(7).spawn(2)[1].generate_state(1)[0])
         env = tavc_env.parallel_env(**SHORT)
         plain_obs, plain_infos = env.reset(seed=seed)
@@ -129,7 +129,7 @@ def test_same_step_autoreset_returns_the_finished_episode_in_final_info() -> Non
 def test_a_worker_exception_is_raised_here_with_its_traceback() -> None:
     batch = BatchedArenaEnv(2, workers=2, env_kwargs=SHORT, make_env=failing_env)
     batch.reset(seed=0)
-    with pytest.raises(WorkerError, match="(?s)ZeroDivisionError: a fault planted.*broken_step"):
+    with pytest.raises(WorkerError, match=r"(?s)ZeroDivisionError: a fault planted.*broken_step"):
         batch.step(np.zeros((2, 6), np.int64))
     pids = batch.worker_pids
     with pytest.raises(ValueError, match="closed"):
@@ -204,7 +204,9 @@ def test_bad_actions_and_seeds_are_refused() -> None:
             batch.step(np.zeros((2, 6)))
         bad = np.zeros((2, 6), np.int64)
         bad[1, 4] = 2
-        with pytest.raises(ValueError, match=r"actions\[1, 4\] = 2 is invalid; allowed: .*\[0, 1\]"):
+        with pytest.raises(
+            ValueError, match=r"actions\[1, 4\] = 2 is invalid; allowed: .*\[0, 1\]"
+        ):
             batch.step(bad)
         step = batch.step(np.zeros((2, 6), np.int64))  # a rejected step changed nothing
         idle = np.where(step.must_decide, 0, 99)  # entries of robots that need not decide: unread
