@@ -43,6 +43,7 @@ def _rows(settings: study.Settings, async_two: float) -> list[dict[str, Any]]:
                     "case": case.name,
                     "repeat": rep,
                     "decisions_per_s": speed * (1 + 0.01 * rep),
+                    "decisions": 100,
                     "wall_s": 1.0,
                     "cpu_s": 0.5,
                     "workers_cpu_s": 0.5 * case.workers,
