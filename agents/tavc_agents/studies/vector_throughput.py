@@ -23,7 +23,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -33,9 +33,12 @@ import numpy as np
 import tavc_agents.envs  # noqa: F401  (registers the Gymnasium ids)
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.experiments.provenance import run_metadata
-from tavc_agents.studies.common import RESULTS_DIR, Outcome, SweepOptions, at_least, positive
+from tavc_agents.studies.common import RESULTS_DIR, SweepOptions, at_least, positive
+from tavc_agents.studies.throughput import ThroughputOutcome, failure_lines
 from tavc_env._validation import require
 from tavc_env.adapters.batched import BatchedArenaEnv
+
+__all__ = ["Settings", "failure_lines", "run"]  # failure_lines: the script prints the goals missed
 
 GYM_ID = "tavc/dahl2004-v0"
 GOAL = 1.6  # make_vec async 2 over async 1 (issue 26), decisions per wall second
@@ -300,30 +303,18 @@ def build_report(rows: Sequence[Row], s: Settings) -> Report:
     )
 
 
-@dataclass
-class VectorThroughputOutcome(Outcome):
-    """The outcome, with the goals missed (the benchmark then exits with 1)."""
-
-    failed: list[str] = field(default_factory=list)
-
-
-def failure_lines(outcome: VectorThroughputOutcome) -> list[str]:
-    return [f"FAIL: {line}" for line in outcome.failed]
-
-
-def run(settings: Settings) -> VectorThroughputOutcome:
-    """Measure every case, then write the report."""
-    out = settings.out_dir()
+def run(settings: Settings) -> ThroughputOutcome:
+    """Measure every case, then write the report; the outcome names the goal if it was missed."""
     provenance = run_metadata(settings=settings.recorded())
     started = time.perf_counter()
     rows = measure(settings)
     provenance["wall_time_s"] = time.perf_counter() - started
     report = build_report(rows, settings)
-    written = report.write(out, provenance)
-    failed = [
-        f"{name}: {found['verdict']}"
-        for name, found in report.summary.items()
-        if found["verdict"].startswith("FAIL")
-    ]
-    text = f"{report.body}\nwrote {out / 'vector_throughput.md'}"
-    return VectorThroughputOutcome(out, written, text, failed)
+    out = settings.out_dir()
+    verdicts = {name: found["verdict"] for name, found in report.summary.items()}
+    return ThroughputOutcome(
+        out,
+        report.write(out, provenance),
+        f"{report.body}\nwrote {out / 'vector_throughput.md'}",
+        [f"{name}: {v}" for name, v in verdicts.items() if v.startswith("FAIL")],
+    )
