@@ -45,7 +45,7 @@ from gymnasium.vector import AutoresetMode
 from tavc_env._validation import is_integer, require
 from tavc_env.env import ArenaEnv, parallel_env
 
-Arrays = dict[str, Any]  # field -> stacked array; "final_info" -> dict of stacked arrays
+Arrays = dict[str, Any]  # field -> stacked array (and "final_info" -> such a dict)
 EnvFactory = Callable[..., ArenaEnv[Any]]
 
 
@@ -130,20 +130,13 @@ class ArenaGroup:
         out: Arrays = {key: np.stack([row[key] for row in rows]) for key in rows[0]}
         self._deciding = out["action_required"]
         if "rewards" in out:
-            done = np.zeros(len(rows), bool)
-            done[list(finals)] = True
-            final = {
-                key: np.stack(
-                    [
-                        finals[e][key] if e in finals else np.zeros_like(row[key])
-                        for e, row in enumerate(rows)
-                    ]
-                )
-                for key in rows[0]
-                if key not in _STEP_ONLY
-            }
-            out["_final"] = done
-            out["final"] = final
+            out["_final"] = np.isin(np.arange(len(rows)), list(finals))
+            if finals:  # only the finished arenas' rows travel (most steps have none)
+                out["final"] = {
+                    key: np.stack([finals[e][key] for e in sorted(finals)])
+                    for key in rows[0]
+                    if key not in _STEP_ONLY
+                }
         return out
 
 
@@ -368,12 +361,17 @@ class BatchedArenaEnv:
             raise ValueError("step() called before reset(); allowed: call reset() first")
         chosen = self._checked_actions(actions, self._deciding)
         parts = self._run("step", [chosen[a:b] for a, b in self._spans()])
+        finished = [part.pop("final") for part in parts if "final" in part]
         out = _concatenate(parts)
         self._deciding = out["action_required"]
-        observations = out.pop("observations")
         rewards, terminated, truncated = (out.pop(k) for k in _STEP_ONLY)
-        final = out.pop("final")
-        out["_final_obs"] = out["_final_info"] = out.pop("_final")
+        done = out.pop("_final")
+        final = {key: np.zeros_like(value) for key, value in out.items()}
+        if finished:  # the parts' finished rows, in arena order
+            for key, value in final.items():
+                value[done] = np.concatenate([part[key] for part in finished])
+        observations = out.pop("observations")
+        out["_final_obs"] = out["_final_info"] = done
         out["final_obs"] = final.pop("observations")
         out["final_info"] = final
         return BatchedStep(observations, rewards, terminated, truncated, out)
@@ -447,12 +445,7 @@ class BatchedArenaEnv:
 
 
 def _concatenate(parts: list[Arrays]) -> Arrays:
-    """The workers' stacked arrays joined along the arena axis (nested dicts alike)."""
+    """The workers' stacked arrays joined along the arena axis."""
     if len(parts) == 1:
         return parts[0]
-    return {
-        key: _concatenate([p[key] for p in parts])
-        if isinstance(value, dict)
-        else np.concatenate([p[key] for p in parts])
-        for key, value in parts[0].items()
-    }
+    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}

@@ -20,8 +20,11 @@ The script is `benchmarks/vector_throughput.py`; outputs `vector_throughput.{md,
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import time
+from multiprocessing import shared_memory
+from multiprocessing.connection import Connection
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +39,8 @@ from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.studies.common import RESULTS_DIR, SweepOptions, at_least, positive
 from tavc_agents.studies.throughput import ThroughputOutcome, failure_lines
 from tavc_env._validation import require
-from tavc_env.adapters.batched import BatchedArenaEnv
+from tavc_env.adapters.batched import ArenaGroup, BatchedArenaEnv
+from tavc_env.env import parallel_env
 
 __all__ = ["Settings", "failure_lines", "run"]  # failure_lines: the script prints the goals missed
 
@@ -186,6 +190,79 @@ def time_batched(case: Case, seed: int, steps: int, episode_s: float) -> Row:
         wall = time.perf_counter() - started
         cpu, workers_cpu = own_cpu_s() - cpu, process_cpu_s(pids) - workers_cpu
     return {"decisions": decisions, "wall_s": wall, "cpu_s": cpu, "workers_cpu_s": workers_cpu}
+
+
+# -- the transport: pickled arrays through the pipe, or shared memory ------------------------------
+def _echo_pickled(connection: Connection, payload: dict[str, np.ndarray]) -> None:
+    """A worker that answers every message with `payload`, pickled (as `BatchedArenaEnv`'s)."""
+    while connection.recv() is not None:
+        connection.send(payload)
+
+
+def _echo_shared(connection: Connection, payload: dict[str, np.ndarray], block: str) -> None:
+    """A worker that writes `payload` into shared memory `block` and answers with one byte."""
+    memory = shared_memory.SharedMemory(name=block)
+    views = _views(memory, payload)
+    while connection.recv() is not None:
+        for key, value in payload.items():
+            views[key][...] = value
+        connection.send_bytes(b"1")
+    del views
+    memory.close()
+
+
+def _views(memory: shared_memory.SharedMemory, like: dict[str, np.ndarray]) -> dict[str, Any]:
+    views, offset = {}, 0
+    for key, value in like.items():
+        views[key] = np.ndarray(value.shape, value.dtype, buffer=memory.buf, offset=offset)
+        offset += value.nbytes
+    return views
+
+
+def transport_us(payload: dict[str, np.ndarray], trips: int) -> dict[str, float]:
+    """Median microseconds of one round trip (actions out, one step's arrays back, copied out in
+    this process) with each transport, over `trips` trips in blocks of 50."""
+    context: Any = multiprocessing.get_context("fork")
+    actions = np.zeros((4, 6), np.int64)
+    size = sum(v.nbytes for v in payload.values())
+    memory = shared_memory.SharedMemory(create=True, size=size)
+    found = {}
+    try:
+        for name, target, extra in (
+            ("pickled_us", _echo_pickled, ()),
+            ("shared_memory_us", _echo_shared, (memory.name,)),
+        ):
+            here, there = context.Pipe()
+            worker = context.Process(target=target, args=(there, payload, *extra), daemon=True)
+            worker.start()
+            views = _views(memory, payload)
+            blocks = []
+            for _ in range(max(trips // 50, 1)):
+                started = time.perf_counter()
+                for _ in range(50):
+                    here.send(actions)
+                    if name == "pickled_us":
+                        here.recv()
+                    else:
+                        here.recv_bytes()
+                        {key: view.copy() for key, view in views.items()}
+                blocks.append((time.perf_counter() - started) / 50 * 1e6)
+            del views
+            here.send(None)
+            worker.join()
+            found[name] = float(np.median(blocks))
+    finally:
+        memory.close()
+        memory.unlink()
+    found["payload_bytes"] = float(size)
+    return found
+
+
+def step_payload(arenas: int, episode_s: float) -> dict[str, np.ndarray]:
+    """The arrays one worker of `arenas` arenas sends for one step (a step with no episode end)."""
+    group = ArenaGroup(parallel_env, {"max_sim_time_s": episode_s}, arenas)
+    group.reset([0] * arenas)
+    return {k: v for k, v in group.step(np.zeros((arenas, 6), np.int64)).items() if k != "final"}
 
 
 def measure(s: Settings) -> list[Row]:
