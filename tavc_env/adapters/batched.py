@@ -36,6 +36,8 @@ import multiprocessing.connection
 import traceback
 import weakref
 from collections.abc import Callable, Mapping, Sequence
+from itertools import pairwise
+from multiprocessing import shared_memory
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
@@ -75,6 +77,24 @@ class BatchedStep(NamedTuple):
         return mask
 
 
+def arena_row(
+    agents: Sequence[str], obs: Mapping[str, Any], infos: Mapping[str, Mapping[str, Any]]
+) -> Arrays:
+    """One arena's observations and infos, robot by robot (in `agents` order), as arrays."""
+    first = obs[agents[0]]
+    if isinstance(first, Mapping):  # observation_format="dict"
+        vectors = [obs[a]["observation"] for a in agents]
+        masks = [obs[a]["action_mask"] for a in agents]
+    else:  # "box": the mask is in the infos
+        vectors = [obs[a] for a in agents]
+        masks = [infos[a]["action_mask"] for a in agents]
+    row = {"observations": np.stack(vectors).astype(np.float32), "action_mask": np.stack(masks)}
+    for key in infos[agents[0]]:
+        if key != "action_mask":
+            row[key] = np.array([infos[a][key] for a in agents])
+    return row
+
+
 class ArenaGroup:
     """Some arenas stepped in turn, their results stacked: the work of one worker (or of the
     in-process mode). Knows nothing of processes."""
@@ -85,7 +105,9 @@ class ArenaGroup:
         self._deciding = np.zeros((count, len(self.agents)), bool)
 
     def reset(self, seeds: Sequence[int | None]) -> Arrays:
-        rows = [self._row(*env.reset(seed=seed)) for env, seed in zip(self.envs, seeds)]
+        rows = [
+            arena_row(self.agents, *env.reset(seed=seed)) for env, seed in zip(self.envs, seeds)
+        ]
         return self._stack(rows, {})
 
     def step(self, actions: np.ndarray) -> Arrays:
@@ -97,34 +119,19 @@ class ArenaGroup:
                 if deciding
             }
             obs, rewards, terminations, truncations, infos = env.step(chosen)
-            row = self._row(obs, infos)
+            row = arena_row(self.agents, obs, infos)
             row["rewards"] = np.array([rewards[a] for a in self.agents])
             row["terminated"] = np.bool_(any(terminations.values()))
             row["truncated"] = np.bool_(any(truncations.values()))
             if not env.agents:  # the episode ended: same-step autoreset
                 finals[e] = row
-                row = {**self._row(*env.reset()), **{k: row[k] for k in _STEP_ONLY}}
+                row = {**arena_row(self.agents, *env.reset()), **{k: row[k] for k in _STEP_ONLY}}
             rows.append(row)
         return self._stack(rows, finals)
 
     def close(self) -> None:
         for env in self.envs:
             env.close()
-
-    def _row(self, obs: Mapping[str, Any], infos: Mapping[str, Mapping[str, Any]]) -> Arrays:
-        """One arena's observations and infos, robot by robot, as arrays."""
-        first = obs[self.agents[0]]
-        if isinstance(first, Mapping):  # observation_format="dict"
-            vectors = [obs[a]["observation"] for a in self.agents]
-            masks = [obs[a]["action_mask"] for a in self.agents]
-        else:  # "box": the mask is in the infos
-            vectors = [obs[a] for a in self.agents]
-            masks = [infos[a]["action_mask"] for a in self.agents]
-        row = {"observations": np.stack(vectors).astype(np.float32), "action_mask": np.stack(masks)}
-        for key in infos[self.agents[0]]:
-            if key != "action_mask":
-                row[key] = np.array([infos[a][key] for a in self.agents])
-        return row
 
     def _stack(self, rows: list[Arrays], finals: Mapping[int, Arrays]) -> Arrays:
         out: Arrays = {key: np.stack([row[key] for row in rows]) for key in rows[0]}
@@ -141,6 +148,21 @@ class ArenaGroup:
 
 
 _STEP_ONLY = ("rewards", "terminated", "truncated")
+_STEP_FIELDS = (*_STEP_ONLY, "_final")  # what a reset does not write
+
+
+Layout = list[tuple[str, str, tuple[int, ...]]]
+"""The shared block's fields: name, dtype and the shape of one arena's entry."""
+
+
+def _views(buffer: Any, layout: Layout, n_envs: int) -> dict[str, np.ndarray]:
+    """Arrays `(n_envs, *shape)` of every field of `layout`, laid end to end in `buffer`."""
+    views, offset = {}, 0
+    for key, dtype, shape in layout:
+        view = np.ndarray((n_envs, *shape), np.dtype(dtype), buffer=buffer, offset=offset)
+        views[key] = view
+        offset += view.nbytes
+    return views
 
 
 def _serve(
@@ -148,15 +170,20 @@ def _serve(
     parent_end: multiprocessing.connection.Connection | None,
     make_env: EnvFactory,
     env_kwargs: Mapping[str, Any],
-    count: int,
+    arenas: tuple[int, int],
+    block: tuple[str, Layout, int],
 ) -> None:
-    """A worker: build `count` arenas, then answer reset/step/close messages until told to close
-    or until the parent's end of the pipe closes (the parent died)."""
+    """A worker: build arenas `arenas[0]` to `arenas[1] - 1`, then answer reset/step/close
+    messages until told to close or until the parent's end of the pipe closes (the parent died).
+    Results go into the worker's rows of the shared block `block` (name, layout, arenas); only
+    the rows of finished episodes travel through the pipe."""
     if parent_end is not None:
         parent_end.close()  # a forked copy of the parent's end would keep the pipe open forever
     group: ArenaGroup | None = None
+    memory = shared_memory.SharedMemory(name=block[0])
+    views = {k: v[arenas[0] : arenas[1]] for k, v in _views(memory.buf, *block[1:]).items()}
     try:
-        group = ArenaGroup(make_env, env_kwargs, count)
+        group = ArenaGroup(make_env, env_kwargs, arenas[1] - arenas[0])
         connection.send(("ok", None))
         while True:
             try:
@@ -167,7 +194,10 @@ def _serve(
                 connection.send(("ok", None))
                 break
             result = group.reset(argument) if command == "reset" else group.step(argument)
-            connection.send(("ok", result))
+            final = result.pop("final", None)
+            for key, value in result.items():
+                views[key][...] = value
+            connection.send(("ok", final))
     except (KeyboardInterrupt, BrokenPipeError):
         pass  # interrupted with the parent, or the parent is gone: nothing to report to
     except BaseException:
@@ -177,6 +207,8 @@ def _serve(
         if group is not None:
             group.close()
         connection.close()
+        views.clear()  # no view may outlive the mapping
+        memory.close()
 
 
 class _Workers:
@@ -186,24 +218,36 @@ class _Workers:
         self,
         make_env: EnvFactory,
         env_kwargs: Mapping[str, Any],
-        counts: Sequence[int],
+        spans: Sequence[tuple[int, int]],
+        layout: Layout,
         start_method: str | None,
     ) -> None:
         context: Any = multiprocessing.get_context(start_method)  # typeshed's lacks Process
+        n_envs = spans[-1][1]
+        size = sum(v.nbytes for v in _views(None, layout, n_envs).values())
+        self.memory = shared_memory.SharedMemory(create=True, size=max(size, 1))
+        self.views = _views(self.memory.buf, layout, n_envs)
         self.connections: list[multiprocessing.connection.Connection] = []
         self.processes: list[multiprocessing.process.BaseProcess] = []
-        for count in counts:
+        self.closed = False
+        for span in spans:
             parent_end, child_end = context.Pipe()
             process = context.Process(
                 target=_serve,
-                args=(child_end, parent_end, make_env, dict(env_kwargs), count),
+                args=(
+                    child_end,
+                    parent_end,
+                    make_env,
+                    dict(env_kwargs),
+                    span,
+                    (self.memory.name, layout, n_envs),
+                ),
                 daemon=True,  # ended with this process if it exits without closing us
             )
             process.start()
             child_end.close()
             self.connections.append(parent_end)
             self.processes.append(process)
-        self.closed = False
         self.gather()  # every worker built its arenas (or its error is raised here)
 
     def send(self, messages: Sequence[tuple[str, Any]]) -> None:
@@ -244,6 +288,9 @@ class _Workers:
                 process.join(timeout=5)
         for connection in self.connections:
             connection.close()
+        self.views.clear()  # no view may outlive the mapping
+        self.memory.close()
+        self.memory.unlink()
 
 
 class BatchedArenaEnv:
@@ -300,6 +347,7 @@ class BatchedArenaEnv:
         require(
             isinstance(probe, ArenaEnv), "make_env", make_env, "a function returning an ArenaEnv"
         )
+        layout = _layout(probe)
         self.n_envs = int(n_envs)
         self.workers = int(workers)
         self.possible_agents = list(probe.possible_agents)
@@ -321,14 +369,15 @@ class BatchedArenaEnv:
         )
         probe.close()
         counts = [len(part) for part in np.array_split(np.arange(self.n_envs), max(workers, 1))]
-        self._bounds = np.cumsum([0, *counts])
+        bounds = np.cumsum([0, *counts])
+        self._spans = [(int(a), int(b)) for a, b in pairwise(bounds)]
         self._deciding: np.ndarray | None = None  # None until reset
         self._local: ArenaGroup | None = None
         self._workers: _Workers | None = None
         if workers == 0:
             self._local = ArenaGroup(make_env, kwargs, self.n_envs)
         else:
-            self._workers = _Workers(make_env, kwargs, counts, start_method)
+            self._workers = _Workers(make_env, kwargs, self._spans, layout, start_method)
             self._finalizer = weakref.finalize(self, self._workers.close)
         self.closed = False
 
@@ -348,8 +397,7 @@ class BatchedArenaEnv:
                 self.n_envs
             )
             seeds = [int(child.generate_state(1)[0]) for child in children]
-        parts = self._run("reset", [seeds[a:b] for a, b in self._spans()])
-        out = _concatenate(parts)
+        out, _ = self._run("reset", [seeds[a:b] for a, b in self._spans])
         self._deciding = out["action_required"]
         observations = out.pop("observations")
         return observations, out
@@ -360,14 +408,12 @@ class BatchedArenaEnv:
         if self._deciding is None:
             raise ValueError("step() called before reset(); allowed: call reset() first")
         chosen = self._checked_actions(actions, self._deciding)
-        parts = self._run("step", [chosen[a:b] for a, b in self._spans()])
-        finished = [part.pop("final") for part in parts if "final" in part]
-        out = _concatenate(parts)
+        out, finished = self._run("step", [chosen[a:b] for a, b in self._spans])
         self._deciding = out["action_required"]
         rewards, terminated, truncated = (out.pop(k) for k in _STEP_ONLY)
         done = out.pop("_final")
         final = {key: np.zeros_like(value) for key, value in out.items()}
-        if finished:  # the parts' finished rows, in arena order
+        if finished:  # the finished rows of every group, in arena order
             for key, value in final.items():
                 value[done] = np.concatenate([part[key] for part in finished])
         observations = out.pop("observations")
@@ -400,21 +446,26 @@ class BatchedArenaEnv:
         self.close()
 
     # -- helpers ---------------------------------------------------------------------------------
-    def _spans(self) -> list[tuple[int, int]]:
-        return [(int(a), int(b)) for a, b in zip(self._bounds[:-1], self._bounds[1:])]
-
-    def _run(self, command: str, arguments: list[Any]) -> list[Arrays]:
+    def _run(self, command: str, arguments: list[Any]) -> tuple[Arrays, list[Arrays]]:
+        """Every group's results (copied out of the shared block), and the final rows of the
+        groups in which an episode ended."""
         if self._local is not None:
             local = self._local.reset if command == "reset" else self._local.step
-            return [local(arguments[0])]
+            out = local(arguments[0])
+            return out, [out.pop("final")] if "final" in out else []
         assert self._workers is not None
         self._workers.send([(command, argument) for argument in arguments])
         try:
-            answers: list[Arrays] = self._workers.gather()
+            finals = self._workers.gather()
         except WorkerError:
             self.closed = True
             raise
-        return answers
+        out = {
+            key: view.copy()
+            for key, view in self._workers.views.items()
+            if command == "step" or key not in _STEP_FIELDS
+        }
+        return out, [final for final in finals if final is not None]
 
     def _check_open(self) -> None:
         if self.closed:
@@ -444,8 +495,12 @@ class BatchedArenaEnv:
         return array.astype(np.int64)
 
 
-def _concatenate(parts: list[Arrays]) -> Arrays:
-    """The workers' stacked arrays joined along the arena axis."""
-    if len(parts) == 1:
-        return parts[0]
-    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+def _layout(probe: ArenaEnv[Any]) -> Layout:
+    """The fields a step returns for one arena of `probe`'s kind (read from a reset of it), the
+    widest first so that every field stays aligned in the shared block."""
+    n = len(probe.possible_agents)
+    row = arena_row(probe.possible_agents, *probe.reset(seed=0))
+    fields = [(key, value.dtype.str, value.shape) for key, value in row.items()]
+    fields += [("rewards", "<f8", (n,)), ("terminated", "|b1", ()), ("truncated", "|b1", ())]
+    fields += [("_final", "|b1", ())]
+    return sorted(fields, key=lambda field: -np.dtype(field[1]).itemsize)

@@ -23,10 +23,10 @@ from __future__ import annotations
 import multiprocessing
 import os
 import time
-from multiprocessing import shared_memory
-from multiprocessing.connection import Connection
 from collections.abc import Sequence
 from dataclasses import dataclass
+from multiprocessing import shared_memory
+from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 

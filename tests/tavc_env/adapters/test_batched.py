@@ -158,14 +158,13 @@ def test_workers_end_when_their_parent_dies() -> None:
         "b = BatchedArenaEnv(2, workers=2, env_kwargs={'max_sim_time_s': 300.0})\n"
         "print(*b.worker_pids, flush=True); sys.stdin.readline()\n"
     )
-    parent = subprocess.Popen(
+    with subprocess.Popen(
         [sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
-    )
-    assert parent.stdout is not None
-    pids = [int(p) for p in parent.stdout.readline().split()]
-    assert len(pids) == 2 and all(_alive(pid) for pid in pids)
-    os.kill(parent.pid, signal.SIGKILL)  # no clean-up code runs in the parent
-    parent.wait()
+    ) as parent:
+        assert parent.stdout is not None
+        pids = [int(p) for p in parent.stdout.readline().split()]
+        assert len(pids) == 2 and all(_alive(pid) for pid in pids)
+        os.kill(parent.pid, signal.SIGKILL)  # no clean-up code runs in the parent
     deadline = time.monotonic() + 10
     while any(_alive(pid) for pid in pids) and time.monotonic() < deadline:
         time.sleep(0.05)
