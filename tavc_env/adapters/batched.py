@@ -21,11 +21,12 @@ episode's reward and `truncated`, and its last observations and infos in `infos[
 Gymnasium names them. So no step is spent on a reset and every returned step has someone deciding.
 
 `reset(seed)` derives one seed per arena from `seed` (`numpy.random.SeedSequence(seed).spawn`), so
-the same seed gives the same arrays whatever the number of workers. Workers exchange pickled numpy
-arrays through pipes: a step's arrays are a few hundred bytes, so shared memory would save
-microseconds on steps of a millisecond (`benchmarks/vector_throughput.py`). An exception in a worker
-is raised in this process as `WorkerError` with the worker's traceback, and the batch is closed;
-workers exit when this process closes them or dies (their pipe ends).
+the same seed gives the same arrays whatever the number of workers. Workers write their results
+into one shared-memory block and answer through the pipe with a few bytes (the rows of finished
+episodes, when there are any, are pickled): a round trip of one step's arrays takes about a third
+of the time it takes pickled (`benchmarks/vector_throughput.py` measures both). An exception in a
+worker is raised in this process as `WorkerError` with the worker's traceback, and the batch is
+closed; workers exit when this process closes them or dies (their pipe ends).
 """
 
 from __future__ import annotations

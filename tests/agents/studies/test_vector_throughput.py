@@ -55,11 +55,11 @@ def _rows(settings: study.Settings, async_two: float) -> list[dict[str, Any]]:
 
 def test_the_verdict_is_async_two_over_async_one_paired_by_round() -> None:
     settings = study.Settings(out=Path("unused"))
-    passed = study.build_report(_rows(settings, 170.0), settings).summary
+    passed = study.build_report(_rows(settings, 170.0), settings).summary["cases"]
     assert passed["make_vec async, 2 envs"]["ratio_to_one_worker"] == pytest.approx(1.7)
     assert passed["make_vec async, 2 envs"]["verdict"].startswith("PASS")
     assert passed["batched 2 workers x 4 arenas"]["verdict"] == "-"
-    failed = study.build_report(_rows(settings, 150.0), settings).summary
+    failed = study.build_report(_rows(settings, 150.0), settings).summary["cases"]
     assert failed["make_vec async, 2 envs"]["verdict"].startswith("FAIL")
 
 
@@ -68,7 +68,8 @@ def test_quick_run(tmp_path: Path) -> None:
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert done.returncode in (0, 1), done.stderr  # 1: the goal missed (not judged here)
     summary = json.loads((tmp_path / "vector_throughput.json").read_text())["summary"]
-    assert len(summary) == 6
-    assert all(found["decisions_per_s"] > 0 for found in summary.values())
+    assert len(summary["cases"]) == 6
+    assert all(found["decisions_per_s"] > 0 for found in summary["cases"].values())
+    assert summary["transport"]["shared_memory_us"] > 0 and summary["transport"]["pickled_us"] > 0
     lines = (tmp_path / "vector_throughput.csv").read_text().splitlines()
     assert len(lines) == 1 + 2 * 6  # every case in both rounds
