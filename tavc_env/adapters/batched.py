@@ -34,6 +34,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import multiprocessing.connection
+import pickle
 import traceback
 import weakref
 from collections.abc import Callable, Mapping, Sequence
@@ -245,9 +246,18 @@ class _Workers:
                 ),
                 daemon=True,  # ended with this process if it exits without closing us
             )
-            process.start()
-            child_end.close()
             self.connections.append(parent_end)
+            try:
+                process.start()
+            except (pickle.PicklingError, AttributeError, TypeError) as exc:
+                self.close(polite=False)  # the workers started so far, and the shared block
+                raise ValueError(
+                    f"make_env = {make_env!r} is invalid with start method "
+                    f"{context.get_start_method()!r}; allowed: a module-level function (and "
+                    f"picklable env_kwargs), which a new process can import ({exc})"
+                ) from exc
+            finally:
+                child_end.close()
             self.processes.append(process)
         self.gather()  # every worker built its arenas (or its error is raised here)
 

@@ -190,6 +190,14 @@ def test_bad_arguments_are_refused(kwargs: dict[str, Any], name: str) -> None:
         BatchedArenaEnv(**kwargs)
 
 
+def test_a_factory_spawn_cannot_send_is_refused() -> None:
+    def local_factory(**kwargs: Any) -> TavcArenaEnv:
+        return tavc_env.parallel_env(**kwargs)
+
+    with pytest.raises(ValueError, match=r"make_env = .*local_factory.* is invalid with start"):
+        BatchedArenaEnv(2, workers=2, make_env=local_factory, start_method="spawn")
+
+
 def test_bad_actions_and_seeds_are_refused() -> None:
     with BatchedArenaEnv(2, env_kwargs=SHORT) as batch:
         with pytest.raises(ValueError, match="before reset"):
