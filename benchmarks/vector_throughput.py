@@ -2,7 +2,7 @@
 run: `gymnasium.make_vec("tavc/dahl2004-v0", ...)` (the single-robot view) sync 1, async 1 and
 async 2, and the batched multi-agent view (`tavc_env.adapters.batched.BatchedArenaEnv`) in-process
 and with 1 and 2 workers of `--arenas-per-worker` arenas. Ratios are to the 1-worker figure of the
-same round; goal (issue 26): async 2 >= 1.6 x async 1 (exit status 1 if missed). Writes
+same round; goal (issue 26): 2 workers >= 1.6 x 1 in both views (exit status 1 if missed). Writes
 `vector_throughput.{csv,md,json}` into a new run folder under runs/ (git ignores it), `--out`, or
 with `--update-reference` benchmarks/results/vector_throughput/. The study is
 `tavc_agents.studies.vector_throughput`.

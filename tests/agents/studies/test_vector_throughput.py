@@ -53,12 +53,13 @@ def _rows(settings: study.Settings, async_two: float) -> list[dict[str, Any]]:
     return rows
 
 
-def test_the_verdict_is_async_two_over_async_one_paired_by_round() -> None:
+def test_the_verdicts_are_two_workers_over_one_paired_by_round() -> None:
     settings = study.Settings(out=Path("unused"))
     passed = study.build_report(_rows(settings, 170.0), settings).summary["cases"]
     assert passed["make_vec async, 2 envs"]["ratio_to_one_worker"] == pytest.approx(1.7)
     assert passed["make_vec async, 2 envs"]["verdict"].startswith("PASS")
-    assert passed["batched 2 workers x 4 arenas"]["verdict"] == "-"
+    assert passed["batched 2 workers x 4 arenas"]["verdict"].startswith("FAIL")  # 1.0 x 1 worker
+    assert passed["batched 1 worker x 4 arenas"]["verdict"] == "-"
     failed = study.build_report(_rows(settings, 150.0), settings).summary["cases"]
     assert failed["make_vec async, 2 envs"]["verdict"].startswith("FAIL")
 
