@@ -38,7 +38,7 @@ from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.studies.common import RESULTS_DIR, SweepOptions, at_least, positive
 from tavc_agents.studies.throughput import ThroughputOutcome, failure_lines
-from tavc_env._validation import require
+from tavc_env._validation import is_number, require
 from tavc_env.adapters.batched import ArenaGroup, BatchedArenaEnv
 from tavc_env.env import parallel_env
 
@@ -74,8 +74,11 @@ class Settings(SweepOptions):
     """arenas of each batched worker (several spread the cost of the pipes)"""
     episode_s: float = 4 * 3600.0
     """simulated seconds of an episode (long: resets are rare)"""
+    idle_wait_s: float = 60.0
+    """before each case, wait up to this long until no other process is runnable (0: no wait):
+    another busy session takes a core from all of this run's processes"""
     quick: bool = False
-    """smoke run: 2 rounds of 20 steps, 1-hour episodes"""
+    """smoke run: 2 rounds of 20 steps, 1-hour episodes, no waiting"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -84,6 +87,7 @@ class Settings(SweepOptions):
             ("steps", at_least(self.steps, 1), "an integer >= 1"),
             ("arenas_per_worker", at_least(self.arenas_per_worker, 1), "an integer >= 1"),
             ("episode_s", positive(self.episode_s), "a duration > 0 s"),
+            ("idle_wait_s", is_number(self.idle_wait_s) and self.idle_wait_s >= 0, "seconds >= 0"),
         ]
         for name, ok, allowed in checks:
             require(ok, name, getattr(self, name), allowed)
@@ -101,6 +105,10 @@ class Settings(SweepOptions):
     @property
     def timed_steps(self) -> int:
         return 20 if self.quick else self.steps
+
+    @property
+    def idle_limit_s(self) -> float:
+        return 0.0 if self.quick else self.idle_wait_s
 
     @property
     def episode_length_s(self) -> float:
@@ -128,6 +136,7 @@ class Settings(SweepOptions):
             "steps": self.timed_steps,
             "arenas_per_worker": self.arenas_per_worker,
             "episode_s": self.episode_length_s,
+            "idle_wait_s": self.idle_limit_s,
             "quick": self.quick,
         }
 
@@ -265,6 +274,28 @@ def step_payload(arenas: int, episode_s: float) -> dict[str, np.ndarray]:
     return {k: v for k, v in group.step(np.zeros((arenas, 6), np.int64)).items() if k != "final"}
 
 
+def others_runnable() -> int:
+    """Processes runnable now besides this one (Linux's /proc/loadavg); 0 if it cannot tell."""
+    try:
+        with open("/proc/loadavg", encoding="ascii") as fh:
+            return max(int(fh.read().split()[3].split("/")[0]) - 1, 0)
+    except (OSError, IndexError, ValueError):
+        return 0
+
+
+def wait_for_idle(limit_s: float) -> tuple[float, int]:
+    """Wait up to `limit_s` until no other process has been runnable for three samples in a row
+    (0.2 s apart); return the seconds waited and the other runnable processes last seen."""
+    started = time.perf_counter()
+    quiet = 0
+    seen = others_runnable()
+    while quiet < 3 and time.perf_counter() - started < limit_s:
+        time.sleep(0.2)
+        seen = others_runnable()
+        quiet = quiet + 1 if seen == 0 else 0
+    return time.perf_counter() - started, seen
+
+
 def measure(s: Settings) -> list[Row]:
     """Every case once per round, in turn, after one untimed warm-up of each view."""
     time_make_vec(s.cases[0], 0, 5, s.episode_length_s)  # imports, compiled caches
@@ -274,6 +305,7 @@ def measure(s: Settings) -> list[Row]:
     for rep in range(s.rounds):
         for case in s.cases:
             timer = time_make_vec if case.view == "make_vec" else time_batched
+            waited, others = wait_for_idle(s.idle_limit_s)
             load = os.getloadavg()[0]
             found = timer(case, rep, s.timed_steps, s.episode_length_s)
             found["decisions_per_s"] = found["decisions"] / found["wall_s"]
@@ -286,6 +318,8 @@ def measure(s: Settings) -> list[Row]:
                     "workers": case.workers,
                     "repeat": rep,
                     "load_1min": load,
+                    "idle_wait_s": waited,
+                    "others_runnable": others,
                     **found,
                 }
             )
@@ -314,6 +348,7 @@ HEADER = [
     "cores busy (CPU s / wall s)",
     "CPU ms / decision",
     "load (1 min)",
+    "idle at start",
     "goal",
 ]
 
@@ -351,6 +386,7 @@ def build_report(rows: Sequence[Row], s: Settings, transport: Row | None = None)
             verdict = f"{'PASS' if ok else 'FAIL'} (>= {GOAL:g} x 1 worker)"
         cpu = [r["cpu_s"] + (r["workers_cpu_s"] if case.workers else 0.0) for r in mine]
         loads = [r["load_1min"] for r in mine]
+        idle = sum(r.get("others_runnable", 0) == 0 for r in mine)
         table.append(
             [
                 case.name,
@@ -362,6 +398,7 @@ def build_report(rows: Sequence[Row], s: Settings, transport: Row | None = None)
                 median_range([c / r["wall_s"] for c, r in zip(cpu, mine)], 2),
                 median_range([1e3 * c / r["decisions"] for c, r in zip(cpu, mine)], 3),
                 f"{min(loads):.1f}-{max(loads):.1f}",
+                f"{idle}/{len(mine)}",
                 verdict,
             ]
         )
@@ -374,6 +411,7 @@ def build_report(rows: Sequence[Row], s: Settings, transport: Row | None = None)
                 np.median([1e3 * c / r["decisions"] for c, r in zip(cpu, mine)])
             ),
             "load_1min": [min(loads), max(loads)],
+            "idle_at_start": idle,
             "verdict": verdict,
         }
     body = "\n".join(
@@ -391,7 +429,9 @@ def build_report(rows: Sequence[Row], s: Settings, transport: Row | None = None)
             "2-core machine; 'CPU ms / decision' staying put from 1 to 2 workers means the pipes "
             "cost nothing extra, so a ratio below 2 comes from cores the workers did not get. "
             f"'load' is the 1-minute load average before each case ({os.cpu_count()} cores): "
-            "other work on the machine takes cores from the workers and shrinks the ratios.",
+            "other work on the machine takes cores from the workers and shrinks the ratios, so "
+            f"each case first waits up to {s.idle_limit_s:g} s for no other runnable process; "
+            "'idle at start' counts the rounds in which it found none.",
             "",
             markdown_table(HEADER, table),
         ]
