@@ -137,7 +137,7 @@ class ArenaGroup:
 
     def _stack(self, rows: list[Arrays], finals: Mapping[int, Arrays]) -> Arrays:
         out: Arrays = {key: np.stack([row[key] for row in rows]) for key in rows[0]}
-        self._deciding = out["action_required"]
+        self._deciding = out["action_required"].copy()  # the caller may write to its own
         if "rewards" in out:
             out["_final"] = np.isin(np.arange(len(rows)), list(finals))
             if finals:  # only the finished arenas' rows travel (most steps have none)
@@ -409,7 +409,7 @@ class BatchedArenaEnv:
             )
             seeds = [int(child.generate_state(1)[0]) for child in children]
         out, _ = self._run("reset", [seeds[a:b] for a, b in self._spans])
-        self._deciding = out["action_required"]
+        self._deciding = out["action_required"].copy()  # the caller may write to its own
         observations = out.pop("observations")
         return observations, out
 
@@ -420,7 +420,7 @@ class BatchedArenaEnv:
             raise ValueError("step() called before reset(); allowed: call reset() first")
         chosen = self._checked_actions(actions, self._deciding)
         out, finished = self._run("step", [chosen[a:b] for a, b in self._spans])
-        self._deciding = out["action_required"]
+        self._deciding = out["action_required"].copy()  # the caller may write to its own
         rewards, terminated, truncated = (out.pop(k) for k in _STEP_ONLY)
         done = out.pop("_final")
         final = {key: np.zeros_like(value) for key, value in out.items()}
