@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from multiprocessing import shared_memory
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import gymnasium
 import numpy as np
@@ -59,6 +59,15 @@ class Case:
     envs: int  # sub-envs (make_vec) or arenas (batched)
     workers: int  # worker processes (0: none)
     baseline: str  # the case its ratio is taken to
+
+
+class RunSize(NamedTuple):
+    """What a run does: rounds, timed steps per case, the idle wait and the episode length."""
+
+    rounds: int
+    steps: int
+    idle_wait_s: float
+    episode_s: float
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -99,20 +108,11 @@ class Settings(SweepOptions):
         )
 
     @property
-    def rounds(self) -> int:
-        return 2 if self.quick else self.repeats
-
-    @property
-    def timed_steps(self) -> int:
-        return 20 if self.quick else self.steps
-
-    @property
-    def idle_limit_s(self) -> float:
-        return 0.0 if self.quick else self.idle_wait_s
-
-    @property
-    def episode_length_s(self) -> float:
-        return 3600.0 if self.quick else self.episode_s
+    def size(self) -> RunSize:
+        """What this run does: the settings, or the smoke run's sizes with `quick`."""
+        if self.quick:
+            return RunSize(rounds=2, steps=20, idle_wait_s=0.0, episode_s=3600.0)
+        return RunSize(self.repeats, self.steps, self.idle_wait_s, self.episode_s)
 
     @property
     def cases(self) -> list[Case]:
@@ -132,11 +132,11 @@ class Settings(SweepOptions):
 
     def recorded(self) -> dict[str, Any]:
         return {
-            "repeats": self.rounds,
-            "steps": self.timed_steps,
+            "repeats": self.size.rounds,
+            "steps": self.size.steps,
             "arenas_per_worker": self.arenas_per_worker,
-            "episode_s": self.episode_length_s,
-            "idle_wait_s": self.idle_limit_s,
+            "episode_s": self.size.episode_s,
+            "idle_wait_s": self.size.idle_wait_s,
             "quick": self.quick,
         }
 
@@ -308,16 +308,16 @@ def wait_for_idle(limit_s: float) -> tuple[float, float]:
 
 def measure(s: Settings) -> list[Row]:
     """Every case once per round, in turn, after one untimed warm-up of each view."""
-    time_make_vec(s.cases[0], 0, 5, s.episode_length_s)  # imports, compiled caches
-    time_batched(s.cases[3], 0, 5, s.episode_length_s)
+    time_make_vec(s.cases[0], 0, 5, s.size.episode_s)  # imports, compiled caches
+    time_batched(s.cases[3], 0, 5, s.size.episode_s)
     rows: list[Row] = []
     started = time.perf_counter()
-    for rep in range(s.rounds):
+    for rep in range(s.size.rounds):
         for case in s.cases:
             timer = time_make_vec if case.view == "make_vec" else time_batched
-            waited, idle = wait_for_idle(s.idle_limit_s)
+            waited, idle = wait_for_idle(s.size.idle_wait_s)
             load = os.getloadavg()[0]
-            found = timer(case, rep, s.timed_steps, s.episode_length_s)
+            found = timer(case, rep, s.size.steps, s.size.episode_s)
             found["decisions_per_s"] = found["decisions"] / found["wall_s"]
             rows.append(
                 {
@@ -426,7 +426,7 @@ def build_report(rows: Sequence[Row], s: Settings, transport: Row | None = None)
         }
     body = "\n".join(
         [
-            f"{s.rounds} rounds of {s.timed_steps} vector steps per case, median [min, max] over "
+            f"{s.size.rounds} rounds of {s.size.steps} vector steps per case, median [min, max] over "
             "rounds; the cases take turns within each round, from seed = round. Decisions per "
             "*wall* second of the stepping loop (processes run side by side): for `make_vec` one "
             f"decision is a step of one sub-env of `{GYM_ID}` (one of the learner's tasks, about "
@@ -434,13 +434,13 @@ def build_report(rows: Sequence[Row], s: Settings, transport: Row | None = None)
             "whose action the step read (`must_decide`). The two views' figures are therefore not "
             "comparable with each other; the ratios are to the 1-worker case of the same view and "
             "round (async 1 env; 1 worker). CPU s: this process plus its workers (from /proc), "
-            f"over the timed loop. Episodes of {s.episode_length_s:g} simulated s, `dahl2004`, "
+            f"over the timed loop. Episodes of {s.size.episode_s:g} simulated s, `dahl2004`, "
             f"random actions. 'cores busy' is CPU s over wall s: with 2 workers it is 2 on an idle "
             "2-core machine; 'CPU ms / decision' staying put from 1 to 2 workers means the pipes "
             "cost nothing extra, so a ratio below 2 comes from cores the workers did not get. "
             f"'load' is the 1-minute load average before each case ({os.cpu_count()} cores): "
             "other work on the machine takes cores from the workers and shrinks the ratios, so "
-            f"each case first waits up to {s.idle_limit_s:g} s for the cores to be idle (at least "
+            f"each case first waits up to {s.size.idle_wait_s:g} s for the cores to be idle (at least "
             f"{IDLE:.0%} of their time, three half-second windows in a row); 'idle at start' "
             "counts the rounds in which they were.",
             "",
@@ -470,7 +470,7 @@ def run(settings: Settings) -> ThroughputOutcome:
     provenance = run_metadata(settings=settings.recorded())
     started = time.perf_counter()
     rows = measure(settings)
-    payload = step_payload(settings.arenas_per_worker, settings.episode_length_s)
+    payload = step_payload(settings.arenas_per_worker, settings.size.episode_s)
     transport = transport_us(payload, 200 if settings.quick else 2000)
     provenance["wall_time_s"] = time.perf_counter() - started
     report = build_report(rows, settings, transport)
