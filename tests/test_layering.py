@@ -37,6 +37,7 @@ LAYERS: list[tuple[int, str]] = [
     (3, "tavc_env.v0"),
     (3, "tavc_env"),  # the package's __init__: the public API, re-exporting the env
     (4, "tavc_env.adapters"),  # views of the env for learning libraries
+    (4, "tavc_env.adapters.batched"),  # N arenas in worker processes, results stacked
     (4, "tavc_agents.policy"),
     (4, "tavc_agents.driver"),
     (4, "tavc_agents.model"),

@@ -1,6 +1,7 @@
-"""Views of the arena env for learning libraries: the deciders-only (semi-Markov) view, and the
-adapters that need a library (`rllib`, `sb3`, and `benchmarl`'s task classes; each imports its
-library, which is an optional extra). The engine and the env know nothing of them."""
+"""Views of the arena env for learning libraries: the deciders-only (semi-Markov) view, many arenas
+stepped together in worker processes (`batched`), and the adapters that need a library (`rllib`,
+`sb3`, and `benchmarl`'s task classes; each imports its library, which is an optional extra). The
+engine and the env know nothing of them."""
 
 from tavc_env._validation import is_number, require
 

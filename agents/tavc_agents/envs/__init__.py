@@ -1,2 +1,8 @@
 """Environments built from the arena and policies: one robot of a team as a Gymnasium env
-(`single_robot`), for single-agent RL libraries."""
+(`single_robot`), for single-agent RL libraries. Importing this package registers its Gymnasium
+ids (`registration.SINGLE_ROBOT_IDS`, e.g. `tavc/dahl2004-v0`) for `gymnasium.make` and
+`gymnasium.make_vec`."""
+
+from tavc_agents.envs.registration import SINGLE_ROBOT_IDS, register_single_robot_envs
+
+register_single_robot_envs(SINGLE_ROBOT_IDS)

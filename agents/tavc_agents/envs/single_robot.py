@@ -5,6 +5,10 @@ default), exactly as in a trial. One `step` is one of the learner's tasks: from 
 next decision epoch, however many environment steps that takes; the reward is what the arena paid
 the learner for it (`w_i / t`, Equation 2). The observation is the paper's: the one-hot of the
 learner's last circuit. An episode ends (truncated) after `episode_s` simulated seconds.
+
+Vectorised (`gymnasium.make_vec("tavc/dahl2004-v0", n, vectorization_mode="async")`, ids in
+`tavc_agents.envs.registration`), each copy is built in its worker from the id's arguments; the env
+also pickles at any point (the arena replays its episode, DESIGN.md section 2.3).
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
 import tavc_env
 from tavc_agents.driver import PolicyDriver
@@ -23,8 +28,22 @@ from tavc_agents.policy import Policy
 from tavc_env._validation import is_integer, is_number, require
 
 
+def softmax_tavc_others(agent: str) -> Policy:
+    """The default policy of the robots that do not learn: softmax TAVC (a module-level function,
+    not a lambda, so that the env pickles)."""
+    return softmax_tavc()
+
+
 class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
     """Robot `robot` learns; the others follow `others(agent)` (default: softmax TAVC)."""
+
+    # NEXT_STEP is what `make_vec` builds by default, so the declaration is what users get. It
+    # suits a semi-MDP: the truncating step returns the episode's last observation itself (a
+    # learner bootstraps from it), and the extra reset step has reward 0 and ignores its action.
+    metadata: dict[str, Any] = {  # noqa: RUF012 (Gymnasium declares it an instance variable)
+        "render_modes": [],
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
 
     def __init__(
         self,
@@ -49,7 +68,7 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
         self.env = tavc_env.parallel_env(max_sim_time_s=float(episode_s), **env_kwargs)
         require(robot in self.env.possible_agents, "robot", robot, str(self.env.possible_agents))
         self.robot = robot
-        self.others = others if others is not None else (lambda agent: softmax_tavc())
+        self.others = others if others is not None else softmax_tavc_others
         m = self.env.config.n_circuits
         self.observation_space = spaces.Box(0.0, 1.0, (m,), np.float32)
         self.n_circuits = m
@@ -70,7 +89,10 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
         )
         seed = None if seed is None else int(seed)
         super().reset(seed=seed)
-        streams = np.random.SeedSequence(seed).spawn(len(self.env.possible_agents) + 1)
+        # Without a seed the episode's streams come from the env's generator (seeded by the last
+        # seeded reset), so a run seeded once stays reproducible: vector envs autoreset so.
+        entropy = seed if seed is not None else int(self.np_random.integers(2**63))
+        streams = np.random.SeedSequence(entropy).spawn(len(self.env.possible_agents) + 1)
         policies = {}
         for agent, stream in zip(self.env.possible_agents, streams[1:]):
             if agent != self.robot:

@@ -31,6 +31,7 @@ STUDIES: dict[str, str] = {
         "twin_batch",
         "twin_curve",
         "cli_startup",
+        "vector_throughput",
     )
 }
 """Study name -> module."""

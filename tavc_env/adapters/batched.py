@@ -1,0 +1,517 @@
+"""N arenas stepped together, in worker processes, with every result stacked into arrays.
+
+`BatchedArenaEnv(n_envs, workers=w, env_kwargs={...})` holds `n_envs` copies of the arena (each
+built by `make_env(**env_kwargs)`, by default `tavc_env.parallel_env`), split into `w` contiguous
+groups, one per worker process (`workers=0`: all in this process, for debugging and for one
+arena). A step sends each worker its groups' actions and returns, with `N = n_envs` and `n` robots:
+
+- `observations`: `(N, n, k)` float32, the env's observation vector of every robot;
+- `rewards`: `(N, n)` float64; `terminated`, `truncated`: `(N,)` bool (a whole arena ends at once);
+- `infos`: a dict of arrays: every info field of the env, `(N, n)` (`action_required` is who must
+  decide next, `elapsed_s`, `task_time_s`, `sim_time_s`, ...), and `action_mask` `(N, n, m)` int8.
+  `BatchedStep.must_decide` and `.action_masks` name the two a loop needs.
+
+This is the layout of CleanRL's loops and of TorchRL's batched multi-agent tensors. Actions are an
+integer array `(N, n)`; only entries of robots that must decide are read (others may hold anything,
+e.g. a masked sample). **Autoreset, same step** (`AutoresetMode.SAME_STEP`): an arena whose episode
+ends in a step is reset at once (its generator continues, so the run stays reproducible); the step
+returns the new episode's first observations and infos (every robot deciding), the finished
+episode's reward and `truncated`, and its last observations and infos in `infos["final_obs"]` and
+`infos["final_info"]` (rows of other arenas zero), flagged by `infos["_final_obs"]` `(N,)`, as
+Gymnasium names them. So no step is spent on a reset and every returned step has someone deciding.
+
+`reset(seed)` derives one seed per arena from `seed` (`numpy.random.SeedSequence(seed).spawn`), so
+the same seed gives the same arrays whatever the number of workers. Workers write their results
+into one shared-memory block and answer through the pipe with a few bytes (the rows of finished
+episodes, when there are any, are pickled): a round trip of one step's arrays takes about a third
+of the time it takes pickled (`benchmarks/vector_throughput.py` measures both). An exception in a
+worker is raised in this process as `WorkerError` with the worker's traceback, and the batch is
+closed; workers exit when this process closes them or dies (their pipe ends).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import multiprocessing.connection
+import pickle
+import traceback
+import weakref
+from collections.abc import Callable, Mapping, Sequence
+from itertools import pairwise
+from multiprocessing import shared_memory
+from typing import Any, ClassVar, NamedTuple
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+
+from tavc_env._validation import is_integer, require
+from tavc_env.env import ArenaEnv, parallel_env
+
+Arrays = dict[str, Any]  # field -> stacked array (and "final_info" -> such a dict)
+EnvFactory = Callable[..., ArenaEnv[Any]]
+
+
+class WorkerError(RuntimeError):
+    """An exception raised in a worker process; its message carries the worker's traceback."""
+
+
+class BatchedStep(NamedTuple):
+    """What `BatchedArenaEnv.step` returns; unpacks as Gymnasium's five values."""
+
+    observations: np.ndarray
+    rewards: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    infos: Arrays
+
+    @property
+    def must_decide(self) -> np.ndarray:
+        """`(N, n)` bool: the robots whose action the next step reads."""
+        mask: np.ndarray = self.infos["action_required"]
+        return mask
+
+    @property
+    def action_masks(self) -> np.ndarray:
+        """`(N, n, m)` int8: the circuits each robot may choose (all, for a deciding robot)."""
+        mask: np.ndarray = self.infos["action_mask"]
+        return mask
+
+
+def arena_row(
+    agents: Sequence[str], obs: Mapping[str, Any], infos: Mapping[str, Mapping[str, Any]]
+) -> Arrays:
+    """One arena's observations and infos, robot by robot (in `agents` order), as arrays."""
+    first = obs[agents[0]]
+    if isinstance(first, Mapping):  # observation_format="dict"
+        vectors = [obs[a]["observation"] for a in agents]
+        masks = [obs[a]["action_mask"] for a in agents]
+    else:  # "box": the mask is in the infos
+        vectors = [obs[a] for a in agents]
+        masks = [infos[a]["action_mask"] for a in agents]
+    row = {"observations": np.stack(vectors).astype(np.float32), "action_mask": np.stack(masks)}
+    for key in infos[agents[0]]:
+        if key != "action_mask":
+            row[key] = np.array([infos[a][key] for a in agents])
+    return row
+
+
+class ArenaGroup:
+    """Some arenas stepped in turn, their results stacked: the work of one worker (or of the
+    in-process mode). Knows nothing of processes."""
+
+    def __init__(self, make_env: EnvFactory, env_kwargs: Mapping[str, Any], count: int) -> None:
+        self.envs = [make_env(**env_kwargs) for _ in range(count)]
+        self.agents = list(self.envs[0].possible_agents)
+        self._deciding = np.zeros((count, len(self.agents)), bool)
+
+    def reset(self, seeds: Sequence[int | None]) -> Arrays:
+        rows = [
+            arena_row(self.agents, *env.reset(seed=seed)) for env, seed in zip(self.envs, seeds)
+        ]
+        return self._stack(rows, {})
+
+    def step(self, actions: np.ndarray) -> Arrays:
+        rows, finals = [], {}
+        for e, env in enumerate(self.envs):
+            chosen = {
+                agent: int(a)
+                for agent, a, deciding in zip(self.agents, actions[e], self._deciding[e])
+                if deciding
+            }
+            obs, rewards, terminations, truncations, infos = env.step(chosen)
+            row = arena_row(self.agents, obs, infos)
+            row["rewards"] = np.array([rewards[a] for a in self.agents])
+            row["terminated"] = np.bool_(any(terminations.values()))
+            row["truncated"] = np.bool_(any(truncations.values()))
+            if not env.agents:  # the episode ended: same-step autoreset
+                finals[e] = row
+                row = {**arena_row(self.agents, *env.reset()), **{k: row[k] for k in _STEP_ONLY}}
+            rows.append(row)
+        return self._stack(rows, finals)
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+    def _stack(self, rows: list[Arrays], finals: Mapping[int, Arrays]) -> Arrays:
+        out: Arrays = {key: np.stack([row[key] for row in rows]) for key in rows[0]}
+        self._deciding = out["action_required"].copy()  # the caller may write to its own
+        if "rewards" in out:
+            out["_final"] = np.isin(np.arange(len(rows)), list(finals))
+            if finals:  # only the finished arenas' rows travel (most steps have none)
+                out["final"] = {
+                    key: np.stack([finals[e][key] for e in sorted(finals)])
+                    for key in rows[0]
+                    if key not in _STEP_ONLY
+                }
+        return out
+
+
+_STEP_ONLY = ("rewards", "terminated", "truncated")
+_STEP_FIELDS = (*_STEP_ONLY, "_final")  # what a reset does not write
+
+
+Layout = list[tuple[str, str, tuple[int, ...]]]
+"""The shared block's fields: name, dtype and the shape of one arena's entry."""
+
+
+def _views(buffer: Any, layout: Layout, n_envs: int) -> dict[str, np.ndarray]:
+    """Arrays `(n_envs, *shape)` of every field of `layout`, laid end to end in `buffer`."""
+    views, offset = {}, 0
+    for key, dtype, shape in layout:
+        view = np.ndarray((n_envs, *shape), np.dtype(dtype), buffer=buffer, offset=offset)
+        views[key] = view
+        offset += view.nbytes
+    return views
+
+
+def _serve(
+    connection: multiprocessing.connection.Connection,
+    parent_end: multiprocessing.connection.Connection | None,
+    make_env: EnvFactory,
+    env_kwargs: Mapping[str, Any],
+    arenas: tuple[int, int],
+    block: tuple[str, Layout, int],
+) -> None:
+    """A worker: build arenas `arenas[0]` to `arenas[1] - 1`, then answer reset/step/close
+    messages until told to close or until the parent's end of the pipe closes (the parent died).
+    Results go into the worker's rows of the shared block `block` (name, layout, arenas); only
+    the rows of finished episodes travel through the pipe."""
+    if parent_end is not None:
+        parent_end.close()  # a forked copy of the parent's end would keep the pipe open forever
+    group: ArenaGroup | None = None
+    memory = shared_memory.SharedMemory(name=block[0])
+    views = {k: v[arenas[0] : arenas[1]] for k, v in _views(memory.buf, *block[1:]).items()}
+    try:
+        group = ArenaGroup(make_env, env_kwargs, arenas[1] - arenas[0])
+        connection.send(("ok", None))
+        while True:
+            try:
+                command, argument = connection.recv()
+            except EOFError:
+                break  # the parent is gone: nobody to answer
+            if command == "close":
+                connection.send(("ok", None))
+                break
+            result = group.reset(argument) if command == "reset" else group.step(argument)
+            final = result.pop("final", None)
+            for key, value in result.items():
+                views[key][...] = value
+            connection.send(("ok", final))
+    except (KeyboardInterrupt, BrokenPipeError):
+        pass  # interrupted with the parent, or the parent is gone: nothing to report to
+    except BaseException:
+        with contextlib.suppress(OSError, EOFError):  # the parent may be gone too
+            connection.send(("error", traceback.format_exc()))
+    finally:
+        if group is not None:
+            group.close()
+        connection.close()
+        views.clear()  # no view may outlive the mapping
+        memory.close()
+
+
+class _Workers:
+    """The worker processes and their pipes; closing twice does nothing."""
+
+    def __init__(
+        self,
+        make_env: EnvFactory,
+        env_kwargs: Mapping[str, Any],
+        spans: Sequence[tuple[int, int]],
+        layout: Layout,
+        start_method: str | None,
+    ) -> None:
+        context: Any = multiprocessing.get_context(start_method)  # typeshed's lacks Process
+        n_envs = spans[-1][1]
+        size = sum(v.nbytes for v in _views(None, layout, n_envs).values())
+        self.memory = shared_memory.SharedMemory(create=True, size=max(size, 1))
+        self.views = _views(self.memory.buf, layout, n_envs)
+        self.connections: list[multiprocessing.connection.Connection] = []
+        self.processes: list[multiprocessing.process.BaseProcess] = []
+        self.closed = False
+        for span in spans:
+            parent_end, child_end = context.Pipe()
+            process = context.Process(
+                target=_serve,
+                args=(
+                    child_end,
+                    parent_end,
+                    make_env,
+                    dict(env_kwargs),
+                    span,
+                    (self.memory.name, layout, n_envs),
+                ),
+                daemon=True,  # ended with this process if it exits without closing us
+            )
+            self.connections.append(parent_end)
+            try:
+                process.start()
+            except (pickle.PicklingError, AttributeError, TypeError) as exc:
+                self.close(polite=False)  # the workers started so far, and the shared block
+                raise ValueError(
+                    f"make_env = {make_env!r} is invalid with start method "
+                    f"{context.get_start_method()!r}; allowed: a module-level function (and "
+                    f"picklable env_kwargs), which a new process can import ({exc})"
+                ) from exc
+            finally:
+                child_end.close()
+            self.processes.append(process)
+        self.gather()  # every worker built its arenas (or its error is raised here)
+
+    def send(self, messages: Sequence[tuple[str, Any]]) -> None:
+        for connection, message in zip(self.connections, messages):
+            connection.send(message)
+
+    def gather(self) -> list[Any]:
+        """Every worker's answer, in order; the first worker error closes all and is raised."""
+        answers, errors = [], []
+        for w, connection in enumerate(self.connections):
+            try:
+                status, payload = connection.recv()
+            except (EOFError, OSError) as exc:
+                status, payload = "error", f"the worker process ended unexpectedly ({exc!r})"
+            if status == "error":
+                errors.append(f"worker {w} of {len(self.connections)} failed:\n{payload}")
+            answers.append(payload)
+        if errors:
+            self.close(polite=False)
+            raise WorkerError("\n".join(errors))
+        return answers
+
+    def close(self, polite: bool = True) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        if polite:
+            for connection in self.connections:
+                try:
+                    connection.send(("close", None))
+                    connection.recv()
+                except (OSError, EOFError):
+                    pass
+        for process in self.processes:
+            process.join(timeout=5 if polite else 0.5)
+            if process.is_alive():
+                process.terminate()
+                process.join(timeout=5)
+        for connection in self.connections:
+            connection.close()
+        self.views.clear()  # no view may outlive the mapping
+        self.memory.close()
+        self.memory.unlink()
+
+
+class BatchedArenaEnv:
+    """`n_envs` arenas stepped together, results stacked (see the module's docstring).
+
+    Args:
+        n_envs: arenas in the batch (`N`).
+        workers: worker processes, the arenas split among them as evenly as possible; 0 steps
+            every arena in this process. Several arenas per worker spread the cost of the pipes.
+        env_kwargs: arguments of `make_env` (e.g. `preset`, `max_sim_time_s`,
+            `observation_mode`); every arena gets the same.
+        make_env: builds one arena, an `ArenaEnv` (default `tavc_env.parallel_env`; the twin's
+            `twin_parallel_env` works too). With the `spawn` start method it must be importable
+            (a module-level function), as multiprocessing sends it by name.
+        start_method: multiprocessing's (`fork`, `spawn`, `forkserver`); None: the platform's
+            default.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def __init__(
+        self,
+        n_envs: int,
+        *,
+        workers: int = 0,
+        env_kwargs: Mapping[str, Any] | None = None,
+        make_env: EnvFactory = parallel_env,
+        start_method: str | None = None,
+    ) -> None:
+        require(is_integer(n_envs) and n_envs >= 1, "n_envs", n_envs, "an integer >= 1")
+        require(
+            is_integer(workers) and 0 <= workers <= n_envs,
+            "workers",
+            workers,
+            f"an integer in [0, n_envs = {n_envs}] (0: every arena in this process)",
+        )
+        require(
+            env_kwargs is None or isinstance(env_kwargs, Mapping),
+            "env_kwargs",
+            env_kwargs,
+            "None or a mapping of arguments of make_env",
+        )
+        require(callable(make_env), "make_env", make_env, "a function returning an ArenaEnv")
+        methods = multiprocessing.get_all_start_methods()
+        require(
+            start_method is None or start_method in methods,
+            "start_method",
+            start_method,
+            f"None or one of {methods}",
+        )
+        kwargs = dict(env_kwargs or {})
+        # one arena built here first: a bad argument is the env's own ValueError, raised here
+        probe = make_env(**kwargs)
+        require(
+            isinstance(probe, ArenaEnv), "make_env", make_env, "a function returning an ArenaEnv"
+        )
+        layout = _layout(probe)
+        self.n_envs = int(n_envs)
+        self.workers = int(workers)
+        self.possible_agents = list(probe.possible_agents)
+        self.n_agents = len(self.possible_agents)
+        self.n_circuits = probe.config.n_circuits
+        vector = probe.observation_space(self.possible_agents[0])
+        if isinstance(vector, spaces.Dict):
+            vector = vector["observation"]
+        assert isinstance(vector, spaces.Box)
+        self.single_observation_space: spaces.Box = vector
+        self.single_action_space = spaces.Discrete(self.n_circuits)
+        self.observation_space = spaces.Box(
+            np.broadcast_to(vector.low, (self.n_envs, self.n_agents, *vector.shape)),
+            np.broadcast_to(vector.high, (self.n_envs, self.n_agents, *vector.shape)),
+            dtype=np.float32,
+        )
+        self.action_space = spaces.MultiDiscrete(
+            np.full((self.n_envs, self.n_agents), self.n_circuits)
+        )
+        probe.close()
+        counts = [len(part) for part in np.array_split(np.arange(self.n_envs), max(workers, 1))]
+        bounds = np.cumsum([0, *counts])
+        self._spans = [(int(a), int(b)) for a, b in pairwise(bounds)]
+        self._deciding: np.ndarray | None = None  # None until reset
+        self._local: ArenaGroup | None = None
+        self._workers: _Workers | None = None
+        if workers == 0:
+            self._local = ArenaGroup(make_env, kwargs, self.n_envs)
+        else:
+            self._workers = _Workers(make_env, kwargs, self._spans, layout, start_method)
+            self._finalizer = weakref.finalize(self, self._workers.close)
+        self.closed = False
+
+    def reset(self, seed: int | None = None) -> tuple[np.ndarray, Arrays]:
+        """Reset every arena: with `seed`, arena `i` from the `i`-th seed spawned from it; without,
+        each continues its own stream (the first reset without a seed draws fresh entropy)."""
+        self._check_open()
+        require(
+            seed is None or (is_integer(seed) and seed >= 0),
+            "seed",
+            seed,
+            "None or an integer >= 0 (int or numpy integer; not bool, not float)",
+        )
+        seeds: list[int | None] = [None] * self.n_envs
+        if seed is not None or self._deciding is None:
+            children = np.random.SeedSequence(None if seed is None else int(seed)).spawn(
+                self.n_envs
+            )
+            seeds = [int(child.generate_state(1)[0]) for child in children]
+        out, _ = self._run("reset", [seeds[a:b] for a, b in self._spans])
+        self._deciding = out["action_required"].copy()  # the caller may write to its own
+        observations = out.pop("observations")
+        return observations, out
+
+    def step(self, actions: Any) -> BatchedStep:
+        """Step every arena with `actions` `(N, n)` (integers; only deciding robots' are read)."""
+        self._check_open()
+        if self._deciding is None:
+            raise ValueError("step() called before reset(); allowed: call reset() first")
+        chosen = self._checked_actions(actions, self._deciding)
+        out, finished = self._run("step", [chosen[a:b] for a, b in self._spans])
+        self._deciding = out["action_required"].copy()  # the caller may write to its own
+        rewards, terminated, truncated = (out.pop(k) for k in _STEP_ONLY)
+        done = out.pop("_final")
+        final = {key: np.zeros_like(value) for key, value in out.items()}
+        if finished:  # the finished rows of every group, in arena order
+            for key, value in final.items():
+                value[done] = np.concatenate([part[key] for part in finished])
+        observations = out.pop("observations")
+        out["_final_obs"] = out["_final_info"] = done
+        out["final_obs"] = final.pop("observations")
+        out["final_info"] = final
+        return BatchedStep(observations, rewards, terminated, truncated, out)
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """The process ids of the workers (none in-process)."""
+        if self._workers is None:
+            return []
+        return [p.pid for p in self._workers.processes if p.pid is not None]
+
+    def close(self) -> None:
+        """Close every arena and end the workers; closing again does nothing."""
+        if self.closed:
+            return
+        self.closed = True
+        if self._workers is not None:
+            self._finalizer()
+        if self._local is not None:
+            self._local.close()
+
+    def __enter__(self) -> BatchedArenaEnv:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- helpers ---------------------------------------------------------------------------------
+    def _run(self, command: str, arguments: list[Any]) -> tuple[Arrays, list[Arrays]]:
+        """Every group's results (copied out of the shared block), and the final rows of the
+        groups in which an episode ended."""
+        if self._local is not None:
+            local = self._local.reset if command == "reset" else self._local.step
+            out = local(arguments[0])
+            return out, [out.pop("final")] if "final" in out else []
+        assert self._workers is not None
+        self._workers.send([(command, argument) for argument in arguments])
+        try:
+            finals = self._workers.gather()
+        except WorkerError:
+            self.closed = True
+            raise
+        out = {
+            key: view.copy()
+            for key, view in self._workers.views.items()
+            if command == "step" or key not in _STEP_FIELDS
+        }
+        return out, [final for final in finals if final is not None]
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise ValueError("the batched env is closed; allowed: a new BatchedArenaEnv")
+
+    def _checked_actions(self, actions: Any, deciding: np.ndarray) -> np.ndarray:
+        """`actions` as an int64 array `(N, n)`, or a ValueError naming the first bad entry of a
+        robot that must decide (the others are not read)."""
+        shape = (self.n_envs, self.n_agents)
+        array = np.asarray(actions)
+        require(
+            array.shape == shape and array.dtype.kind in "iu",
+            "actions",
+            f"array of shape {array.shape} and dtype {array.dtype}",
+            f"an integer array of shape {shape}",
+        )
+        m = self.n_circuits
+        bad = deciding & ((array < 0) | (array >= m))
+        if bad.any():
+            e, i = (int(x) for x in np.argwhere(bad)[0])
+            require(
+                False,
+                f"actions[{e}, {i}]",
+                int(array[e, i]),
+                f"a circuit index in [0, {m - 1}] (robot {i} of arena {e} must decide)",
+            )
+        return array.astype(np.int64)
+
+
+def _layout(probe: ArenaEnv[Any]) -> Layout:
+    """The fields a step returns for one arena of `probe`'s kind (read from a reset of it), the
+    widest first so that every field stays aligned in the shared block."""
+    n = len(probe.possible_agents)
+    row = arena_row(probe.possible_agents, *probe.reset(seed=0))
+    fields = [(key, value.dtype.str, value.shape) for key, value in row.items()]
+    fields += [("rewards", "<f8", (n,)), ("terminated", "|b1", ()), ("truncated", "|b1", ())]
+    fields += [("_final", "|b1", ())]
+    return sorted(fields, key=lambda field: -np.dtype(field[1]).itemsize)
