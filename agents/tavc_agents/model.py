@@ -192,10 +192,18 @@ class CompletionModel:
         that by dynamic programming over the circuits (exact too: the value is a sum over
         circuits; ties broken towards the first group tried, the largest on circuit 0)."""
         counts = self._team(team)
-        splits = math.prod(math.comb(n + self.n_circuits - 1, self.n_circuits - 1) for n in counts)
-        if splits <= EXHAUSTIVE_LIMIT:
+        if self.n_allocations(counts) <= EXHAUSTIVE_LIMIT:
             return self.ranked(counts)[0][1]
         return self._optimum_by_circuit(counts)
+
+    def n_allocations(self, team: Sequence[int] | None = None) -> int:
+        """How many ways there are to split `team` (default: the whole team) over the circuits."""
+        m = self.n_circuits
+        return math.prod(math.comb(n + m - 1, m - 1) for n in self._team(team))
+
+    def ranked_if_few(self) -> list[tuple[float, Allocation]] | None:
+        """`ranked()` for the whole team, or None beyond `EXHAUSTIVE_LIMIT` allocations."""
+        return self.ranked() if self.n_allocations() <= EXHAUSTIVE_LIMIT else None
 
     def _optimum_by_circuit(self, team: Group) -> Allocation:
         # best[i][r]: the best value of circuits i.. serving the robots r (counts per class)

@@ -1,8 +1,8 @@
 """Gymnasium ids for the single-robot view (`SingleRobotEnv`), so that `gymnasium.make(id)` and
 `gymnasium.make_vec(id, num_envs, vectorization_mode="sync" | "async")` build it.
 
-Importing `tavc_agents.envs` registers `SINGLE_ROBOT_IDS`; `gymnasium.make("tavc/dahl2004-v0")`
-then works (or, without that import, `gymnasium.make("tavc_agents.envs:tavc/dahl2004-v0")`).
+Importing `tavc_agents.envs` registers `SINGLE_ROBOT_IDS`, one id per scenario of the suite;
+`gymnasium.make("tavc/dahl2004-v0")` then works (or, without that import, `gymnasium.make("tavc_agents.envs:tavc/dahl2004-v0")`).
 """
 
 from __future__ import annotations
@@ -12,11 +12,15 @@ from typing import Any
 
 import gymnasium
 
+from tavc_env.scenarios import SCENARIOS
+
 SINGLE_ROBOT_ENTRY_POINT = "tavc_agents.envs.single_robot:SingleRobotEnv"
 
-SINGLE_ROBOT_IDS: Mapping[str, Mapping[str, Any]] = {"tavc/dahl2004-v0": {"preset": "dahl2004"}}
-"""Gymnasium id -> `SingleRobotEnv` keyword arguments (provisional: one preset; the scenario suite
-will give the full list, under the same names as in PettingZoo's registry)."""
+SINGLE_ROBOT_IDS: Mapping[str, Mapping[str, Any]] = {
+    s.id: {"scenario": s.name} for s in SCENARIOS.values()
+}
+"""Gymnasium id -> `SingleRobotEnv` keyword arguments: every scenario of the suite
+(`tavc_env.scenarios`), under the id it has in PettingZoo's registry."""
 
 
 def register_single_robot_envs(ids: Mapping[str, Mapping[str, Any]]) -> None:

@@ -49,9 +49,14 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
         self,
         robot: str = "robot_0",
         others: Callable[[str], Policy] | None = None,
-        episode_s: float = 4 * 3600.0,
+        episode_s: float | None = None,
+        scenario: str | None = None,
         **env_kwargs: Any,
     ) -> None:
+        if scenario is not None:
+            chosen = tavc_env.scenarios.scenario_named(scenario)
+            episode_s = chosen.episode_s if episode_s is None else episode_s
+        episode_s = 4 * 3600.0 if episode_s is None else episode_s
         require(is_number(episode_s) and episode_s > 0, "episode_s", episode_s, "a duration > 0 s")
         require(
             "max_sim_time_s" not in env_kwargs,
@@ -65,7 +70,13 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
             others,
             "None (softmax TAVC) or a function from an agent name to its Policy",
         )
-        self.env = tavc_env.parallel_env(max_sim_time_s=float(episode_s), **env_kwargs)
+        self.env = (
+            tavc_env.parallel_env(max_sim_time_s=float(episode_s), **env_kwargs)
+            if scenario is None
+            else tavc_env.scenarios.parallel_env(
+                scenario, max_sim_time_s=float(episode_s), **env_kwargs
+            )
+        )
         require(robot in self.env.possible_agents, "robot", robot, str(self.env.possible_agents))
         self.robot = robot
         self.others = others if others is not None else softmax_tavc_others

@@ -93,7 +93,7 @@ class Settings(StudySettings):
 
 def check_allocations(model: CompletionModel, top: int) -> list[Allocation]:
     """The optimum, its neighbours and the `top` best allocations, without repeats, best first."""
-    ranked = [a for _, a in model.ranked()]
+    ranked = [a for _, a in model.ranked_if_few() or [(0.0, model.optimum())]]
     chosen = [ranked[0], *model.neighbours(ranked[0]), *ranked[1:top]]
     unique = list(dict.fromkeys(chosen))
     return sorted(unique, key=lambda a: -model.value_rate(a))
@@ -232,7 +232,19 @@ def slot_table(slot_rows: Sequence[Mapping[str, Any]]) -> str:
 
 def best_section(model: CompletionModel) -> str:
     """The ten best allocations of the model, and its optimum and worst allocation."""
-    ranked = model.ranked()
+    ranked = model.ranked_if_few()
+    if ranked is None:  # too many to rank: the optimum alone, found circuit by circuit
+        best = model.optimum()
+        return "\n".join(
+            [
+                "## Best allocation (model)",
+                "",
+                f"Predicted optimum: **{describe(model, best)}**, "
+                f"{3600 * model.value_rate(best):.0f} value per hour, "
+                f"{model.performance(best):.4f} per robot per 10 s (found circuit by circuit; "
+                f"the {model.n_allocations()} allocations are too many to rank).",
+            ]
+        )
     best_value, best = ranked[0]
     table = markdown_table(
         ["rank", "allocation (groups per circuit)", "value per h", "per robot per 10 s"],
@@ -257,8 +269,8 @@ def best_section(model: CompletionModel) -> str:
 
 def slot_report(model: CompletionModel, preset: str) -> Report:
     """`slot_values.{md,csv,json}`: c of every group, the slot values and the best allocations."""
-    ranked = model.ranked()
-    best = ranked[0][1]
+    ranked = model.ranked_if_few()
+    best = model.optimum()
     slot_rows = model.slot_table()
     body = [
         f"Team: {model.describe(model.team)}; circuit values {list(model.values)}.",
@@ -276,7 +288,7 @@ def slot_report(model: CompletionModel, preset: str) -> Report:
     summary = {
         "optimum": best,
         "optimum_performance": model.performance(best),
-        "ranked_top10": [(a, model.performance(a)) for _, a in ranked[:10]],
+        "ranked_top10": [(a, model.performance(a)) for _, a in (ranked or [])[:10]],
     }
     title = f"TAVC model of {preset}: completion frequencies and slot values"
     return Report("slot_values", title, "\n".join(body), slot_rows, summary)
@@ -297,7 +309,7 @@ def check_rows(
         runs[str(spec.tags["allocation"])].append(
             delivered_performance(result, *result.measured_window)
         )
-    ranked = [a for _, a in model.ranked()]
+    ranked = [a for _, a in model.ranked_if_few() or []]
     rows = []
     for a in allocations:
         perfs = runs[allocation_key(a)]
@@ -306,7 +318,7 @@ def check_rows(
             {
                 "allocation": describe(model, a),
                 "key": allocation_key(a),
-                "model_rank": ranked.index(a) + 1,
+                "model_rank": ranked.index(a) + 1 if ranked else None,
                 "predicted": model.performance(a),
                 "measured": m,
                 "measured_low": lo,
@@ -330,7 +342,7 @@ def check_report(rows: list[dict[str, Any]], settings: Settings) -> Report:
         [
             [
                 r["allocation"],
-                r["model_rank"],
+                r["model_rank"] or "-",
                 f"{r['predicted']:.4f}",
                 f"{r['measured']:.4f} [{r['measured_low']:.4f}, {r['measured_high']:.4f}]",
                 f"{r['measured_over_predicted']:.3f}",
@@ -346,7 +358,7 @@ def check_report(rows: list[dict[str, Any]], settings: Settings) -> Report:
         "",
         table,
         "",
-        f"Measured best: {measured_best['allocation']} (model rank {measured_best['model_rank']}). "
+        f"Measured best: {measured_best['allocation']} (model rank {measured_best['model_rank'] or '-'}). "
         f"Spearman rank correlation of predicted and measured: {rank_corr:.2f}.",
     ]
     return Report(

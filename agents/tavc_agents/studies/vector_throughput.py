@@ -27,8 +27,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from multiprocessing import shared_memory
 from multiprocessing.connection import Connection
-from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import gymnasium
 import numpy as np
@@ -36,13 +35,13 @@ import numpy as np
 import tavc_agents.envs  # noqa: F401  (registers the Gymnasium ids)
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.experiments.provenance import run_metadata
-from tavc_agents.studies.common import RESULTS_DIR, SweepOptions, at_least, positive
-from tavc_agents.studies.throughput import ThroughputOutcome, failure_lines
+from tavc_agents.experiments.study import Outcome, StudySettings
+from tavc_agents.studies.common import at_least, positive
 from tavc_env._validation import is_number, require
 from tavc_env.adapters.batched import ArenaGroup, BatchedArenaEnv
 from tavc_env.env import parallel_env
 
-__all__ = ["Settings", "failure_lines", "run"]  # failure_lines: the script prints the goals missed
+__all__ = ["Settings", "run"]
 
 GYM_ID = "tavc/dahl2004-v0"
 GOAL = 1.6  # 2 workers over 1 (issue 26), decisions per wall second, for both views
@@ -71,9 +70,12 @@ class RunSize(NamedTuple):
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(SweepOptions):
+class Settings(StudySettings):
     """The vector throughput benchmark's settings (its command line). The cases run one at a
     time in this process and its workers, so `workers` can only be 1 and `backend` local."""
+
+    reference: ClassVar = "vector_throughput"
+    quick_reference_apart: ClassVar = False
 
     repeats: int = 5
     """rounds (every case once per round)"""
@@ -126,9 +128,6 @@ class Settings(SweepOptions):
             Case(one_worker, "batched", "workers", k, 1, one_worker),
             Case(f"batched 2 workers x {k} arenas", "batched", "workers", 2 * k, 2, one_worker),
         ]
-
-    def reference_dir(self) -> Path:
-        return RESULTS_DIR / "vector_throughput"
 
     def recorded(self) -> dict[str, Any]:
         return {
@@ -465,7 +464,7 @@ def build_report(rows: Sequence[Row], s: Settings, transport: Row | None = None)
     )
 
 
-def run(settings: Settings) -> ThroughputOutcome:
+def run(settings: Settings) -> Outcome:
     """Measure every case, then write the report; the outcome names the goal if it was missed."""
     provenance = run_metadata(settings=settings.recorded())
     started = time.perf_counter()
@@ -476,7 +475,7 @@ def run(settings: Settings) -> ThroughputOutcome:
     report = build_report(rows, settings, transport)
     out = settings.out_dir()
     verdicts = {name: found["verdict"] for name, found in report.summary["cases"].items()}
-    return ThroughputOutcome(
+    return Outcome(
         out,
         report.write(out, provenance),
         f"{report.body}\nwrote {out / 'vector_throughput.md'}",

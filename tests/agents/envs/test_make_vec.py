@@ -36,7 +36,7 @@ def rollout(envs: gymnasium.vector.VectorEnv, seed: int, steps: int) -> list[np.
 def test_the_id_is_registered_with_the_single_robot_view() -> None:
     assert GYM_ID in SINGLE_ROBOT_IDS
     spec = gymnasium.spec(GYM_ID)
-    assert spec.entry_point == SINGLE_ROBOT_ENTRY_POINT and spec.kwargs == {"preset": "dahl2004"}
+    assert spec.entry_point == SINGLE_ROBOT_ENTRY_POINT and spec.kwargs == {"scenario": "dahl2004"}
     env = gymnasium.make(GYM_ID, episode_s=SHORT_S)
     assert isinstance(env.unwrapped, SingleRobotEnv)
     assert env.metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP
@@ -48,7 +48,7 @@ def test_registering_again_is_a_no_op_and_a_clash_is_refused() -> None:
     register_single_robot_envs(SINGLE_ROBOT_IDS)
     with pytest.raises(ValueError, match=r"gymnasium id 'tavc/dahl2004-v0' = .* is invalid"):
         register_single_robot_envs({GYM_ID: {"preset": "dahl2004_homogeneous"}})
-    assert gymnasium.spec(GYM_ID).kwargs == {"preset": "dahl2004"}
+    assert gymnasium.spec(GYM_ID).kwargs == {"scenario": "dahl2004"}
 
 
 @pytest.mark.parametrize(
@@ -110,3 +110,19 @@ def test_a_reset_without_seed_continues_the_seeded_run() -> None:
     again, _ = twin.reset()
     assert np.array_equal(first, again)
     assert [env.step(1)[1] for _ in range(4)] == [twin.step(1)[1] for _ in range(4)]
+
+
+def test_every_scenario_has_its_single_robot_view_in_gymnasium() -> None:
+    # the same ids as in PettingZoo's registry; the episode is the scenario's unless given
+    from tavc_env import SCENARIOS
+
+    for scenario in SCENARIOS.values():
+        env = gymnasium.make(scenario.id)
+        assert env.unwrapped.env.scenario == scenario
+        assert env.unwrapped.env.options.max_sim_time_s == scenario.episode_s
+        env.close()
+    short = gymnasium.make("tavc/priority_shifts-v0", episode_s=SHORT_S)
+    observation, _ = short.reset(seed=0)
+    assert short.unwrapped.env.value_plan == () or short.unwrapped.env.value_plan[0][0] > 0
+    short.step(int(np.argmax(observation)))
+    short.close()
