@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from tavc_agents.studies import vector_throughput as study
 from tavc_agents.experiments.study import run_study
+from tavc_agents.studies import vector_throughput as study
 
 
 def main(argv: Sequence[str] | None = None) -> int:
