@@ -28,32 +28,27 @@ from scipy import stats
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.experiments.runner import TrialResult
-from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
+from tavc_agents.experiments.study import RESULTS_DIR, Outcome
 from tavc_agents.experiments.sweep import TrialSpec
 from tavc_agents.model import load_model
 from tavc_agents.studies.allocators import allocators
-from tavc_agents.studies.common import at_least, positive, refuse_invalid
-from tavc_agents.studies.scenarios import value_per_hour
-from tavc_env.scenarios import SCENARIOS, Scenario
+from tavc_agents.studies.common import at_least, refuse_invalid
+from tavc_agents.studies.scenarios import EvaluationSettings, value_per_hour
+from tavc_env.scenarios import SCENARIOS
 
 FIGURE = "leaderboard.png"
 Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(StudySettings):
+class Settings(EvaluationSettings):
     """The leaderboard's settings (its command line)."""
 
     reference: ClassVar = "leaderboard"
+    min_seeds: ClassVar = 2  # an interval needs two
     quick_sizes: ClassVar = {"seeds": 2, "episode_h": 0.5, "resamples": 200}
     recorded_fields: ClassVar = "scenarios seeds_text episode_text resamples seed"
 
-    scenarios: tuple[str, ...] = tuple(SCENARIOS)
-    """the scenarios (names in tavc_env.scenarios.SCENARIOS)"""
-    seeds: int | None = None
-    """evaluation seeds per scenario (default: all of the scenario's)"""
-    episode_h: float | None = None
-    """episode length, simulated hours (default: the scenario's)"""
     references: Path = RESULTS_DIR / "scenarios" / "references.json"
     """the scenarios' committed references (random and optimum) that normalise the scores"""
     resamples: int = 10_000
@@ -68,13 +63,6 @@ class Settings(StudySettings):
         refuse_invalid(
             self,
             [
-                (
-                    "scenarios",
-                    len(self.scenarios) >= 1 and all(n in SCENARIOS for n in self.scenarios),
-                    f"one or more of {', '.join(SCENARIOS)}",
-                ),
-                ("seeds", self.seeds is None or at_least(self.seeds, 2), "None or >= 2"),
-                ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
                 ("resamples", at_least(self.resamples, 100), "an integer >= 100"),
                 ("seed", at_least(self.seed, 0), "an integer >= 0"),
                 (
@@ -85,20 +73,6 @@ class Settings(StudySettings):
                 ),
             ],
         )
-
-    @property
-    def seeds_text(self) -> str:
-        return "all" if self.seeds is None else str(self.seeds)
-
-    @property
-    def episode_text(self) -> str:
-        return "scenario's" if self.episode_h is None else str(float(self.episode_h))
-
-    def seeds_of(self, scenario: Scenario) -> tuple[int, ...]:
-        return scenario.eval_seeds if self.seeds is None else scenario.eval_seeds[: self.seeds]
-
-    def episode_s(self, scenario: Scenario) -> float:
-        return scenario.episode_s if self.episode_h is None else float(self.episode_h) * 3600.0
 
 
 def specs(s: Settings) -> list[TrialSpec]:

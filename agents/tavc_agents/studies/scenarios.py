@@ -44,45 +44,37 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(StudySettings):
-    """The references' settings (their command line)."""
+class EvaluationSettings(StudySettings):
+    """What every study of the suite's evaluation episodes takes: the scenarios, how many of their
+    evaluation seeds, and the episode length (the scenario's unless given)."""
 
-    quick_sizes: ClassVar = {"seeds": 2, "episode_h": 0.5}
-    recorded_fields: ClassVar = "stage scenarios seeds_text episode_text"
+    min_seeds: ClassVar[int] = 1
 
-    stage: Literal["predict", "measure"] = "predict"
-    """predict (the model's references, no physics) or measure (physics episodes)"""
     scenarios: tuple[str, ...] = tuple(SCENARIOS)
     """the scenarios (names in tavc_env.scenarios.SCENARIOS)"""
     seeds: int | None = None
     """evaluation seeds per scenario (default: all of the scenario's)"""
     episode_h: float | None = None
     """episode length, simulated hours (default: the scenario's)"""
-    quick: bool = False
-    """smoke run: 2 seeds, 0.5-h episodes"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
         refuse_invalid(
             self,
             [
-                ("stage", self.stage in ("predict", "measure"), "predict or measure"),
                 (
                     "scenarios",
                     len(self.scenarios) >= 1 and all(n in SCENARIOS for n in self.scenarios),
                     f"one or more of {', '.join(SCENARIOS)}",
                 ),
-                ("seeds", self.seeds is None or at_least(self.seeds, 1), "None or >= 1"),
                 (
-                    "episode_h",
-                    self.episode_h is None or positive(self.episode_h),
-                    "None or hours > 0",
+                    "seeds",
+                    self.seeds is None or at_least(self.seeds, self.min_seeds),
+                    f"None or >= {self.min_seeds}",
                 ),
+                ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
             ],
         )
-
-    def reference_name(self) -> str:
-        return "scenarios_prediction" if self.stage == "predict" else "scenarios"
 
     @property
     def seeds_text(self) -> str:
@@ -97,6 +89,28 @@ class Settings(StudySettings):
 
     def episode_s(self, scenario: Scenario) -> float:
         return scenario.episode_s if self.episode_h is None else float(self.episode_h) * 3600.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(EvaluationSettings):
+    """The references' settings (their command line)."""
+
+    quick_sizes: ClassVar = {"seeds": 2, "episode_h": 0.5}
+    recorded_fields: ClassVar = "stage scenarios seeds_text episode_text"
+
+    stage: Literal["predict", "measure"] = "predict"
+    """predict (the model's references, no physics) or measure (physics episodes)"""
+    quick: bool = False
+    """smoke run: 2 seeds, 0.5-h episodes"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        refuse_invalid(
+            self, [("stage", self.stage in ("predict", "measure"), "predict or measure")]
+        )
+
+    def reference_name(self) -> str:
+        return "scenarios_prediction" if self.stage == "predict" else "scenarios"
 
 
 # -- an episode's phases and the model's values ------------------------------------------------------
@@ -352,7 +366,7 @@ def run(settings: Settings) -> Outcome:
     ]
     if s.stage == "predict":
         report = prediction_report(s, predictions)
-        written = report.write(out, run_metadata(**s.recorded()))
+        written = report.write(out, run_metadata(settings=s.recorded()))
         return Outcome(out, written, report.body)
     results, provenance = s.run_trials(measure_specs(s))
     report = measure_report(s, results, predictions)
