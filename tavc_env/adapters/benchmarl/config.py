@@ -14,9 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from tavc_env import scenarios
 from tavc_env._validation import is_integer, require
 from tavc_env.adapters import checked_reward_scale
-from tavc_env.options import resolve_env_args
+from tavc_env.env import ArenaEnv, parallel_env
+from tavc_env.options import EnvOptions, resolve_env_args
+from tavc_env.scenarios import scenario_named
 
 ENV_NAME = "tavc"
 # The root of the shipped configuration, laid out as BenchMARL's own `conf` folder so that Hydra
@@ -41,7 +44,7 @@ def task_ids() -> dict[str, str]:
 @dataclass(frozen=True)
 class TavcTaskConfig:
     """A `tavc` task's configuration, checked: `env_kwargs` build the env with
-    `tavc_env.parallel_env(**env_kwargs)` (its `max_cycles` is `max_steps`)."""
+    `make_env(env_kwargs)` (its `max_cycles` is `max_steps`)."""
 
     max_steps: int
     reward_scale: float
@@ -69,10 +72,23 @@ class TavcTaskConfig:
         kwargs = {k: v for k, v in config.items() if k not in TASK_KEYS and k not in HYDRA_KEYS}
         kwargs["max_cycles"] = int(steps)
         try:
-            resolve_env_args(**kwargs)  # the arena and options, checked as parallel_env does
+            if "scenario" in kwargs:  # a scenario of the suite, with env options only
+                scenario_named(kwargs["scenario"])
+                EnvOptions(**{k: v for k, v in kwargs.items() if k != "scenario"})
+            else:
+                resolve_env_args(**kwargs)  # the arena and options, checked as parallel_env does
         except (TypeError, ValueError) as error:
             raise ValueError(f"{where}: {error}") from None
         return cls(int(steps), scale, types.MappingProxyType(kwargs))
+
+
+def make_env(env_kwargs: Mapping[str, Any]) -> ArenaEnv[Any]:
+    """The env a task's `env_kwargs` describe: a scenario's (`scenario: <name>`, then env options
+    only), or `tavc_env.parallel_env`'s (a preset, arena overrides, env options)."""
+    kwargs = dict(env_kwargs)
+    if "scenario" in kwargs:
+        return scenarios.parallel_env(kwargs.pop("scenario"), **kwargs)
+    return parallel_env(**kwargs)
 
 
 def load_task_config(name: str, path: str | Path | None = None) -> dict[str, Any]:

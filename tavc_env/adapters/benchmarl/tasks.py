@@ -19,11 +19,11 @@ from benchmarl.environments import Task, TaskClass, task_config_registry
 from torchrl.data import Composite
 from torchrl.envs import EnvBase, PettingZooWrapper, RewardScaling, Transform
 
-import tavc_env
 from tavc_env.adapters.benchmarl.config import (
     ENV_NAME,
     TavcTaskConfig,
     load_task_config,
+    make_env,
     task_ids,
     task_names,
 )
@@ -47,7 +47,7 @@ class TavcTaskClass(TaskClass):
         # One arena per env: BenchMARL batches non-vectorised envs itself (num_envs copies)
         kwargs = dict(self.checked.env_kwargs)
         return lambda: PettingZooWrapper(
-            tavc_env.parallel_env(**kwargs),
+            make_env(kwargs),
             categorical_actions=True,
             seed=seed,
             device=device,

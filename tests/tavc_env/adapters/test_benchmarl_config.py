@@ -13,7 +13,7 @@ import yaml
 
 import tavc_env
 from tavc_env.adapters import benchmarl as family
-from tavc_env.adapters.benchmarl.config import TASK_DIR, TavcTaskConfig
+from tavc_env.adapters.benchmarl.config import TASK_DIR, TavcTaskConfig, make_env
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -33,11 +33,13 @@ def test_every_yaml_is_a_hydra_task_config_that_builds_its_env(name: str) -> Non
     assert "defaults" not in config
     checked = TavcTaskConfig.of(config, name)
     assert checked.env_kwargs["max_cycles"] == checked.max_steps == config["max_steps"]
-    env = tavc_env.parallel_env(**checked.env_kwargs)
+    env = make_env(checked.env_kwargs)
     observations, _ = env.reset(seed=0)
     assert set(observations) == set(env.possible_agents)
     if "preset" in config:  # a preset's task is that preset's arena
         assert env.config == tavc_env.make_config(config["preset"])
+    if "scenario" in config:  # a scenario's task is that scenario, schedule and all
+        assert env.scenario == tavc_env.SCENARIOS[config["scenario"]]
 
 
 def test_the_yaml_files_are_package_data() -> None:
@@ -79,7 +81,7 @@ def test_a_missing_max_steps_and_an_unknown_task_are_refused() -> None:
     with pytest.raises(ValueError, match=r"^task t keys = .* allowed: a max_steps key"):
         TavcTaskConfig.of(config, "task t")
     with pytest.raises(
-        ValueError, match=r"^task = 'nope' is invalid; allowed: one of \['dahl2004'"
+        ValueError, match=r"^task = 'nope' is invalid; allowed: one of \['bad_start'"
     ):
         family.load_task_config("nope")
 
