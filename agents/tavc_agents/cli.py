@@ -116,7 +116,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     overrides = arena_overrides(args.set)
     make_config(args.preset, **overrides)
     total = args.convergence_h + args.measured_h
-    bar = tqdm(total=round(total * 3600), unit="sim s", dynamic_ncols=True, file=sys.stdout)
+    bar = tqdm(total=round(total * 3600), unit="sim s", dynamic_ncols=True, file=sys.stderr)
     done = [0]
 
     def progress(t: float) -> None:

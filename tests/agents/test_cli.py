@@ -53,9 +53,9 @@ def test_every_command_has_help(command: str) -> None:
 
 def test_trial_prints_progress_and_a_summary_and_saves(tmp_path: Path) -> None:
     path = tmp_path / "trial.json"
-    code, out, _ = run(["trial", "--allocator", "random", *TINY, "--out", str(path)])
+    code, out, err = run(["trial", "--allocator", "random", *TINY, "--out", str(path)])
     assert code == 0
-    assert "sim s" in out  # the progress bar
+    assert "sim s" in err and "sim s" not in out  # the progress bar, on stderr
     assert "delivered value per robot per 10 s" in out
     assert "fast robots (3)" in out and "slow robots (3)" in out
     result = TrialResult.load(path)

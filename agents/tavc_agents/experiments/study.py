@@ -256,7 +256,16 @@ def run_study(
     settings = parse_settings(module.Settings, argv, description, prog)
     out = settings.out_dir()
     print(f"Writing to {out}/", flush=True)
-    outcome: Outcome = module.run(settings)
+    try:
+        outcome: Outcome = module.run(settings)
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM during a sweep: one line, not a traceback
+        command = prog or f"python {sys.argv[0]}"
+        print(
+            f"\nInterrupted. The finished jobs are saved in {out}/; continue with "
+            f"`{command} --resume {out}` (and the same other options).",
+            file=sys.stderr,
+        )
+        return 130
     print(outcome.text)
     for line in outcome.failures:
         print(line, file=sys.stderr)

@@ -221,7 +221,7 @@ def run_jobs(
     if backend not in BACKENDS:
         raise ValueError(f"backend = {backend!r} is invalid; allowed: {list(BACKENDS)}")
     if progress_bar:
-        bar = tqdm(total=len(jobs), unit=kind.unit, dynamic_ncols=True, file=sys.stdout)
+        bar = tqdm(total=len(jobs), unit=kind.unit, dynamic_ncols=True, file=sys.stderr)
         user_on_done = on_done
 
         def on_done(job: J, result: R, resumed: bool) -> None:

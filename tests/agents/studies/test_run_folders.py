@@ -77,3 +77,25 @@ def test_resume_reuses_the_saved_trials(tmp_path: Path, capsys: pytest.CaptureFi
     capsys.readouterr()
     assert run_study(table1, [*QUICK, "--resume", str(run)], "") == 0
     assert {p.name: p.stat().st_mtime_ns for p in (run / "trials").glob("*.json")} == saved
+
+
+def test_an_interrupted_study_says_in_one_line_how_to_resume(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Ctrl-C (or SIGTERM during a sweep, which raises the same) ends with exit 130 and one line
+    # naming the --resume command, not a traceback
+    import types
+
+    from tavc_agents.studies import scenarios
+
+    def interrupted(settings: object) -> None:
+        raise KeyboardInterrupt("signal 15")
+
+    module = types.SimpleNamespace(Settings=scenarios.Settings, run=interrupted)
+    code = run_study(module, ["--out", str(tmp_path)], "", prog="python benchmarks/scenarios.py")  # type: ignore[arg-type]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 130
+    assert err == [
+        f"Interrupted. The finished jobs are saved in {tmp_path}/; continue with "
+        f"`python benchmarks/scenarios.py --resume {tmp_path}` (and the same other options)."
+    ]

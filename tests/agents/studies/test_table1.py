@@ -36,9 +36,10 @@ def table1() -> ModuleType:
 
 
 def run_main(table1: ModuleType, argv: list[str]) -> tuple[int, str]:
-    """What `python benchmarks/table1.py ARGV` does, in this process."""
+    """What `python benchmarks/table1.py ARGV` does, in this process (its progress bar, on
+    stderr, in the same text)."""
     buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
         outcome = table1.run(parse_settings(table1.Settings, argv, ""))
         print(outcome.text)
     return 0, buf.getvalue()
