@@ -235,7 +235,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
         source = args.source or RESULTS_DIR / "interference.csv"
         plots.interference_curve(_existing(source), args.out)
     elif args.what == "table1":
-        return _redraw_table1(_existing(args.source))
+        from tavc_agents.studies import table1
+
+        table1.draw_figure(_existing(args.source), args.figure, args.out)
     else:
         trials = {}
         for source in args.source_list:
@@ -248,22 +250,6 @@ def cmd_plot(args: argparse.Namespace) -> int:
                 raise ValueError(f"q takes one trial file, given {len(trials)}; allowed: one")
             plots.q_trajectories(next(iter(trials.values())), args.out)
     print(f"wrote {args.out}")
-    return 0
-
-
-def _redraw_table1(folder: Path) -> int:
-    """Table 1's reports and figures written again from the trials saved in `folder`, with the
-    settings its provenance records (every trial is loaded, none rerun)."""
-    import tavc_agents.studies.table1 as table1
-    from tavc_agents.experiments.provenance import load_provenance
-
-    meta = load_provenance(folder)
-    if meta is None:
-        raise ValueError(
-            f"{folder} has no provenance.json; allowed: an output folder of the table1 study"
-        )
-    outcome = table1.run(table1.settings_from_provenance(meta, folder))
-    print(outcome.text)
     return 0
 
 
@@ -385,8 +371,8 @@ def parser() -> argparse.ArgumentParser:
         description="Draw a figure from saved results. timeline: which circuit each robot served "
         "over time, one panel per trial file (from `tavc trial --out` or a benchmark's saved "
         "trials); q: the learners' Q(high) - Q(other) over time, fast against slow; interference: "
-        "the interference curve t(n) from benchmarks/results/interference.csv; table1: Table 1's "
-        "reports and figures redrawn from a table1 output folder's saved trials.",
+        "the interference curve t(n) from benchmarks/results/interference.csv; table1: one of Table "
+        "1's figures drawn from a table1 output folder's saved trials.",
     )
     plot.add_argument("what", choices=["timeline", "q", "interference", "table1"])
     plot.add_argument(
@@ -398,7 +384,15 @@ def parser() -> argparse.ArgumentParser:
     )
     plot.add_argument("--from-h", type=float, default=None, help="timeline: start (hours)")
     plot.add_argument("--to-h", type=float, default=None, help="timeline: end (hours)")
-    plot.add_argument("--out", type=Path, default=Path("plot.png"), help="the PNG to write")
+    plot.add_argument(
+        "--figure",
+        choices=["figure2.png", "performance.png"],
+        default="figure2.png",
+        help="table1: which figure (default: figure2.png, the paper's Figure 2)",
+    )
+    plot.add_argument(
+        "--out", type=Path, default=Path("plot.png"), help="the PNG to write (and nothing else)"
+    )
     plot.set_defaults(run=cmd_plot)
 
     reproduce = sub.add_parser(

@@ -169,24 +169,27 @@ def test_plots_from_saved_results(tmp_path: Path) -> None:
     assert code == 2 and "is empty" in err
 
 
-def test_table1_figures_are_redrawn_from_saved_trials(tmp_path: Path) -> None:
+def test_plot_table1_writes_exactly_the_figure_asked_for(tmp_path: Path) -> None:
     pytest.importorskip("matplotlib", reason="plots need the plot extra")
     out_dir = tmp_path / "t1"
     argv = ["reproduce", "--", "--quick", "--workers", "1", "--out", str(out_dir)]
     argv += ["--conditions", "softmax,random", "--set", "source_service_s=12"]
     assert run(argv)[0] == 0
-    figure = out_dir / "figure2.png"
-    figure.unlink()
-    before = (out_dir / "table1.md").read_bytes()
-    code, out, err = run(["plot", "table1", str(out_dir)])
+    before = {p.name: p.read_bytes() for p in out_dir.rglob("*") if p.is_file()}
+    target = tmp_path / "t1.png"
+    code, out, err = run(["plot", "table1", str(out_dir), "--out", str(target)])
     assert code == 0, err
-    assert figure.exists() and "wrote" in out
-    # nothing was rerun: the report still names the run that computed the trials, byte for byte
-    assert (out_dir / "table1.md").read_bytes() == before
-    saved = json.loads((out_dir / "table1.json").read_text())["metadata"]
-    assert saved["trials_run"] == 4 and saved["trials_resumed"] == 0
-    code, _, err = run(["plot", "table1", str(tmp_path)])
-    assert code == 2 and "has no provenance.json" in err
+    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {target}" in out
+    # nothing else written, nothing in the output folder touched
+    assert {p.name: p.read_bytes() for p in out_dir.rglob("*") if p.is_file()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t1", "t1.png"]
+    code, _, err = run(
+        ["plot", "table1", str(out_dir), "--figure", "performance.png", "--out", str(target)]
+    )
+    assert code == 0, err
+    code, _, err = run(["plot", "table1", str(tmp_path), "--out", str(tmp_path / "x.png")])
+    assert code == 2 and "an output folder of the table1 study" in err
+    assert not (tmp_path / "x.png").exists()
 
 
 def test_version_and_python_m() -> None:

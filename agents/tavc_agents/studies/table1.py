@@ -38,6 +38,8 @@ from tavc_agents.analysis.measures import TrialMeasures, measure
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, mean_sd, ratio_ci, welch
+from tavc_agents.experiments.files import atomic_path
+from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
     Outcome,
     StudySettings,
@@ -55,7 +57,7 @@ from tavc_agents.studies.common import (
     refuse_invalid,
 )
 from tavc_env import PRESETS, make_config, metrics
-from tavc_env._validation import is_number
+from tavc_env._validation import is_number, require
 
 # The paper's Table 1 (mu_a, s_a: modified TAVC; mu_r, s_r: random; T: Equation 3).
 PAPER_TABLE1: dict[tuple[int, int], tuple[float, float, float, float, float]] = {
@@ -232,6 +234,37 @@ def settings_from_provenance(meta: Mapping[str, Any], out: Path) -> Settings:
     if not saved:
         raise ValueError(f"{out}/trials holds no saved trials; allowed: a table1 output folder")
     return dataclasses.replace(base, conditions=",".join(saved))
+
+
+FIGURES = ("figure2.png", "performance.png")
+
+
+def draw_figure(folder: Path, figure: str, path: Path) -> None:
+    """Draw one of Table 1's figures (`FIGURES`) from the trials saved in the output folder
+    `folder`, into `path`, and write nothing else (no report, no other figure)."""
+    from tavc_agents.experiments.provenance import load_provenance
+
+    require(figure in FIGURES, "figure", figure, f"one of {list(FIGURES)}")
+    meta = load_provenance(folder)
+    require(meta is not None, "folder", str(folder), "an output folder of the table1 study")
+    assert meta is not None
+    s = settings_from_provenance(meta, folder).sized()
+    trial_specs = specs(s)
+    results = {t.key: TrialResult.load(folder / "trials" / f"{t.key}.json") for t in trial_specs}
+    by: dict[str, list[TrialMeasures]] = {c: [] for c in s.chosen}
+    for spec in trial_specs:
+        by[str(spec.tags["condition"])].append(measure(results[spec.key]))
+    report = build_report(by, s, results[trial_specs[0].key].speed_classes)
+    drawers = dict(report.figures)
+    require(
+        figure in drawers,
+        "figure",
+        figure,
+        f"one of those these trials have: {sorted(drawers)} (Figure 2 needs the softmax and random "
+        "conditions of a team of two speed classes)",
+    )
+    with atomic_path(path) as tmp:
+        drawers[figure](tmp)
 
 
 # -- the report ----------------------------------------------------------------------------------
