@@ -102,7 +102,12 @@ def _trial_options(parser: argparse.ArgumentParser) -> None:
         help=f"model.json for {', '.join(NEEDS_MODEL)} (default: the one the package ships for "
         "the preset)",
     )
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="the trial's seed: the arena's and every robot's generator come from it (default: 0)",
+    )
 
 
 def cmd_trial(args: argparse.Namespace) -> int:

@@ -64,12 +64,12 @@ class StudySettings:
     """Whether the report records every setting as text (older studies' reports did)."""
 
     workers: int | None = None
-    """processes, or Ray CPUs (default: all cores)"""
+    """processes, or Ray CPUs; None: all cores"""
     backend: Literal["local", "ray"] = "local"
     """local process pool, or Ray tasks (pip install 'tavc-env[ray]'; set RAY_ADDRESS to use a
     cluster); results and resume are the same either way"""
     out: Path | None = None
-    """output folder (default: a new run folder runs/<study>-<time>/, which git ignores)"""
+    """output folder; None: a new run folder runs/<study>-<time>/, which git ignores"""
     resume: Path | None = None
     """continue an unfinished run in its folder (trials already saved there are not rerun)"""
     update_reference: bool = False
