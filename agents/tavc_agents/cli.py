@@ -422,6 +422,8 @@ def parser() -> argparse.ArgumentParser:
     bench.set_defaults(
         run=lambda a: _run_study(a.name, _strip(a.script_args), f"tavc bench {a.name}")
     )
+    for command in sub.choices.values():  # its errors show its own usage line
+        command.set_defaults(command_parser=command)
     return top
 
 
@@ -437,26 +439,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     # `tavc reproduce --quick` and `tavc bench NAME --trials 3`: the study's own options follow
     # the command (with or without a `--` first); the study's parser checks them
     args, extra = top.parse_known_args(argv)
+    refuse = getattr(args, "command_parser", top).error
     if extra and not hasattr(args, "script_args"):
-        top.error(f"unrecognized arguments: {' '.join(extra)}")
+        refuse(f"unrecognized arguments: {' '.join(extra)}")
     if hasattr(args, "script_args"):
         args.script_args = [*extra, *args.script_args]
     if getattr(args, "name", None) is not None and args.name not in studies.STUDIES:
-        top.error(f"study {args.name!r} is unknown; allowed: {sorted(studies.STUDIES)}")
+        refuse(f"study {args.name!r} is unknown; allowed: {sorted(studies.STUDIES)}")
     for name in ("measured_h", "minutes", "frame_s", "fps"):
         value = getattr(args, name, None)
         if value is not None and not (math.isfinite(value) and value > 0):
-            top.error(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")
+            refuse(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")
     if getattr(args, "what", None) is not None:
         args.source = args.source_list[0] if args.source_list else None
         if args.what != "interference" and not args.source_list:
-            top.error(
+            refuse(
                 f"plot {args.what} needs its input; allowed: trial JSON file(s) for timeline and "
                 "q, a table1 output folder for table1"
             )
     convergence = getattr(args, "convergence_h", 0.0)
     if not (math.isfinite(convergence) and convergence >= 0):
-        top.error(f"--convergence-h = {convergence}; allowed: a finite number >= 0")
+        refuse(f"--convergence-h = {convergence}; allowed: a finite number >= 0")
     try:
         if getattr(args, "out", None) is not None:
             from tavc_agents.experiments.files import check_writable
@@ -464,7 +467,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_writable(args.out)  # before any simulation, not after it
         code: int = args.run(args)
     except ValueError as error:  # also a plugin that does not load (registry.PluginError)
-        top.error(str(error))
+        refuse(str(error))
     except ImportError as error:
         line = missing_extra(error)
         if line is None:

@@ -252,9 +252,11 @@ def _build(factory: Callable[..., Any], name: str, params: Mapping[str, Any]) ->
         )
     missing = [n for n, p in takes.items() if p.default is p.empty and n not in params]
     if missing:
+        # the factory's own description says what a missing value is (a path, a model ...)
+        about = (inspect.getdoc(factory) or "").split("\n\n")[0].replace("\n", " ")
         raise ValueError(
             f"allocator {name!r} needs the parameter{'s' if len(missing) > 1 else ''} "
-            f"{', '.join(missing)}; {allowed}"
+            f"{', '.join(missing)}; {allowed}" + (f" ({about})" if about else "")
         )
     return factory(**params)
 
