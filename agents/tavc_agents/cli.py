@@ -403,8 +403,8 @@ def parser() -> argparse.ArgumentParser:
     reproduce = sub.add_parser(
         "reproduce",
         help=COMMANDS["reproduce"],
-        description="Run the table1 study with the arguments that follow (its options: "
-        "tavc reproduce -- --help).",
+        description="Run the table1 study with the arguments that follow.",
+        add_help=False,  # `tavc reproduce --help` is the study's own help, every option listed
     )
     reproduce.add_argument("script_args", nargs=argparse.REMAINDER)
     reproduce.set_defaults(

@@ -280,3 +280,9 @@ def test_allocator_choices_are_the_registrys_when_the_command_runs(
     code, out, err = run(["trial", "--allocator", "sticky_after_import", *TINY])
     assert code == 0, err
     assert "sticky_after_import on dahl2004, seed 0" in out
+
+
+def test_reproduce_help_lists_the_studys_options() -> None:
+    code, out, _ = run(["reproduce", "--help"])
+    assert code == 0
+    assert all(option in out for option in ("--trials", "--convergence-h", "--resume", "--out"))
