@@ -165,29 +165,32 @@ def run_key(job: Run) -> str:
 
 
 def jobs(s: Settings, networks: Path) -> list[Run]:
-    """Every run, in the order that keeps partial results balanced: scenario by scenario, seed by
-    seed, the algorithms alternating within a seed."""
+    """Every run, in the order that keeps partial results balanced: the scenarios in pairs as
+    given (the paper's and `passing` first), within a pair seed by seed, both scenarios at each
+    seed and the algorithms alternating."""
     out = []
-    for name in s.scenarios:
-        scenario = SCENARIOS[name]
-        seeds = scenario.eval_seeds if s.eval_seeds is None else scenario.eval_seeds[: s.eval_seeds]
-        episode_s = scenario.episode_s if s.episode_h is None else float(s.episode_h) * 3600.0
+    pairs = [s.scenarios[k : k + 2] for k in range(0, len(s.scenarios), 2)]
+    for pair in pairs:
         for seed in range(s.seeds):
-            for algorithm in s.algorithms:
-                out.append(
-                    Run(
-                        algorithm,
-                        name,
-                        seed,
-                        s.decisions,
-                        s.batch,
-                        s.epochs,
-                        max(1, s.decisions // s.curve_points),
-                        episode_s,
-                        tuple(seeds),
-                        str(networks),
+            for name in pair:
+                scenario = SCENARIOS[name]
+                n = len(scenario.eval_seeds) if s.eval_seeds is None else s.eval_seeds
+                hours = scenario.episode_s / 3600.0 if s.episode_h is None else s.episode_h
+                for algorithm in s.algorithms:
+                    out.append(
+                        Run(
+                            algorithm,
+                            name,
+                            seed,
+                            s.decisions,
+                            s.batch,
+                            s.epochs,
+                            max(1, s.decisions // s.curve_points),
+                            float(hours) * 3600.0,
+                            tuple(scenario.eval_seeds[:n]),
+                            str(networks),
+                        )
                     )
-                )
     return out
 
 
