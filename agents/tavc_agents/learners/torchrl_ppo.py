@@ -106,6 +106,23 @@ def decisions_in(data: Any) -> int:
     return int(data[MASK].all(-1).sum().item())
 
 
+def update(loss: ClipPPOLoss, optimiser: Any, data: Any, epochs: int) -> None:
+    """One PPO update on a batch: GAE from the critic, then `epochs` clipped passes."""
+    with torch.no_grad():
+        loss.value_estimator(
+            data,
+            params=loss.critic_network_params,
+            target_params=loss.target_critic_network_params,
+        )
+    for _ in range(epochs):
+        out = loss(data)
+        total = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
+        optimiser.zero_grad()
+        total.backward()
+        torch.nn.utils.clip_grad_norm_(loss.parameters(), 1.0)
+        optimiser.step()
+
+
 def train(
     env: TransformedEnv,
     algorithm: str,
@@ -131,19 +148,7 @@ def train(
         for data in collector:
             done += decisions_in(data)
             steps += batch
-            with torch.no_grad():
-                loss.value_estimator(
-                    data,
-                    params=loss.critic_network_params,
-                    target_params=loss.target_critic_network_params,
-                )
-            for _ in range(epochs):
-                out = loss(data)
-                total = out["loss_objective"] + out["loss_critic"] + out["loss_entropy"]
-                optimiser.zero_grad()
-                total.backward()
-                torch.nn.utils.clip_grad_norm_(loss.parameters(), 1.0)
-                optimiser.step()
+            update(loss, optimiser, data, epochs)
             collector.update_policy_weights_()
             on_batch(done, steps, lambda: network(actor_net))
             if done >= decisions:
