@@ -486,7 +486,7 @@ def draw(
     stay: Mapping[str, float],
 ) -> None:
     """One panel per scenario: each learner's curve, mean over seeds with the range as a band."""
-    fig, axes = subplots(1, len(s.scenarios), figsize=(3.4 * len(s.scenarios), 3.2), sharey=True)
+    fig, axes = subplots(1, len(s.scenarios), figsize=(3.4 * len(s.scenarios), 3.2))
     for ax, name in zip(np.atleast_1d(axes), s.scenarios):
         for algorithm in s.algorithms:
             curves = [
