@@ -397,6 +397,11 @@ def report(
         else "No deep learner's interval lies above `stay` in any scenario so far."
     )
     machine = provenance.get("machine", {})
+    seeds_note = (
+        "the scenario's evaluation seeds"
+        if s.eval_seeds is None
+        else f"the first {s.eval_seeds} of the scenario's evaluation seeds"
+    )
     body = "\n\n".join(
         [
             "TorchRL MAPPO (centralised critic) and IPPO (decentralised critic), one actor shared "
@@ -405,7 +410,7 @@ def report(
             f"batches of {s.batch} env steps, {s.epochs} epochs), training seeds "
             f"0-{s.seeds - 1}. Each run's score is its final network's mean normalised score "
             "(0 = random allocation, 1 = the model optimum; the scenarios' committed references) "
-            f"over the scenario's {s.eval_seeds_text} evaluation seeds, greedy, through the "
+            f"over {seeds_note}, greedy, through the "
             "trial runner; a cell is the interquartile mean over training seeds [95 % percentile "
             f"bootstrap, {s.resamples} resamples]. `stay` is the references' mean score; the "
             "best allocator is the committed allocators' leaderboard's best IQM, if committed.",
@@ -467,8 +472,10 @@ def learned(s: Settings, runs: Sequence[Run], results: Mapping[str, Mapping[str,
 
 def end_circuit(choice: Sequence[int], start: int | None) -> str:
     """Where a robot following `choice` from `start` settles: a circuit, or a cycle."""
-    if start is None:
+    if start is None:  # a start drawn at reset: where it can settle
         fixed = [c for c in range(len(choice)) if choice[c] == c]
+        if len(fixed) == len(choice):
+            return "stays on its start"
         return "/".join(str(c) for c in fixed) if fixed else "cycles"
     seen = [start]
     while choice[seen[-1]] not in seen:
