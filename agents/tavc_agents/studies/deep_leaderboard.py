@@ -348,7 +348,7 @@ def cost_plan(s: Settings, rows: Sequence[Row], n_jobs: int) -> str:
         f"Measured cost (CPU seconds of training per 1000 decisions, over the saved runs): {text}. "
         f"A whole run (training, learning curve, evaluation) took {run_cpu / 60:.1f} CPU min on "
         f"average, so the {n_jobs} runs take about {n_jobs * run_cpu / 3600:.1f} CPU h; "
-        f"{len(rows)} are saved, {left} left: about {left * run_cpu / 3600:.1f} CPU h, "
+        f"Saved: {len(rows)}; left: {left}, about {left * run_cpu / 3600:.1f} CPU h, "
         f"{math.ceil(left * run_cpu / 3600 / 2)} one-hour sessions on 2 free cores (two runs "
         "side by side, each on one core)."
     )
@@ -392,7 +392,9 @@ def report(
     header = ["scenario", "learner", "N seeds", "IQM score [95 % CI]", "stay", "best allocator"]
     beats = [k for k, v in summary.items() if v["ci"][0] > stay[k.partition("/")[0]]]
     verdict = (
-        "Learners whose interval lies above `stay`: " + ", ".join(beats) + "."
+        "Learners whose interval lies above `stay` (with one seed the interval is a point): "
+        + ", ".join(beats)
+        + "."
         if beats
         else "No deep learner's interval lies above `stay` in any scenario so far."
     )
