@@ -307,14 +307,19 @@ def normalised(value: float, ref: Mapping[str, float]) -> float:
     return (value - ref["random"]) / (ref["optimum"] - ref["random"])
 
 
-def stay_scores(path: Path) -> dict[str, float]:
-    """`stay`'s normalised score per scenario (mean over the evaluation seeds), from the
-    committed references."""
-    summary = json.loads(Path(path).read_text())["summary"]
-    return {
-        name: (v["stay_per_h"] - v["random_per_h"]) / (v["optimum_per_h"] - v["random_per_h"])
-        for name, v in summary.items()
-    }
+def reference_scores(path: Path) -> dict[str, dict[str, float]]:
+    """The normalised score of `stay` and of the static model optimum per scenario (their mean
+    value per hour over the evaluation seeds), from the committed references and the table
+    beside them (`references.csv`)."""
+    refs = references(path)
+    table = np.genfromtxt(Path(path).with_suffix(".csv"), delimiter=",", names=True, dtype=None)
+    out = {}
+    for name, ref in refs.items():
+        mine = table[table["scenario"] == name]
+        out[name] = {
+            key: normalised(float(np.mean(mine[f"{key}_per_h"])), ref) for key in ("stay", "static")
+        }
+    return out
 
 
 def best_allocators(path: Path) -> dict[str, tuple[str, float]]:
@@ -362,7 +367,8 @@ def report(
 ) -> Report:
     refs = references(s.references)
     rows = rows_of(runs, results, refs)
-    stay = stay_scores(s.references)
+    baselines = reference_scores(s.references)
+    stay = {name: v["stay"] for name, v in baselines.items()}
     best = best_allocators(RESULTS_DIR / "leaderboard" / "leaderboard.json")
     rng = np.random.default_rng(s.seed)
     table: list[list[Any]] = []
@@ -386,10 +392,19 @@ def report(
                     len(scores),
                     cell,
                     f"{stay[name]:.3f}",
+                    f"{baselines[name]['static']:.3f}",
                     f"{b[0]} {b[1]:.3f}" if b else "-",
                 ]
             )
-    header = ["scenario", "learner", "N seeds", "IQM score [95 % CI]", "stay", "best allocator"]
+    header = [
+        "scenario",
+        "learner",
+        "N seeds",
+        "IQM score [95 % CI]",
+        "stay",
+        "static optimum",
+        "best allocator",
+    ]
     beats = [k for k, v in summary.items() if v["ci"][0] > stay[k.partition("/")[0]]]
     verdict = (
         "Learners whose interval lies above `stay` (with one seed the interval is a point): "
@@ -414,8 +429,9 @@ def report(
             "(0 = random allocation, 1 = the model optimum; the scenarios' committed references) "
             f"over {seeds_note}, greedy, through the "
             "trial runner; a cell is the interquartile mean over training seeds [95 % percentile "
-            f"bootstrap, {s.resamples} resamples]. `stay` is the references' mean score; the "
-            "best allocator is the committed allocators' leaderboard's best IQM, if committed.",
+            f"bootstrap, {s.resamples} resamples]. `stay` and the static optimum (the model optimum "
+            "at the start, held) are the references' mean scores; the best allocator is the "
+            "committed allocators' leaderboard's best IQM, if it is committed.",
             markdown_table(header, table),
             verdict,
             cost_plan(s, rows, len(runs)),
