@@ -352,7 +352,7 @@ def cost_plan(s: Settings, rows: Sequence[Row], n_jobs: int) -> str:
     return (
         f"Measured cost (CPU seconds of training per 1000 decisions, over the saved runs): {text}. "
         f"A whole run (training, learning curve, evaluation) took {run_cpu / 60:.1f} CPU min on "
-        f"average, so the {n_jobs} runs take about {n_jobs * run_cpu / 3600:.1f} CPU h; "
+        f"average, so the {n_jobs} runs take about {n_jobs * run_cpu / 3600:.1f} CPU h. "
         f"Saved: {len(rows)}; left: {left}, about {left * run_cpu / 3600:.1f} CPU h, "
         f"{math.ceil(left * run_cpu / 3600 / 2)} one-hour sessions on 2 free cores (two runs "
         "side by side, each on one core)."
