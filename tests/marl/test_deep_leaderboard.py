@@ -1,0 +1,81 @@
+"""The deep leaderboard at a tiny budget: a run end to end (training, curve, evaluation, report),
+resume without retraining, and settings it refuses (marker `marl`: needs TorchRL)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tavc_agents.studies import deep_leaderboard as study
+
+pytestmark = pytest.mark.marl
+pytest.importorskip("torchrl")
+
+
+def tiny(out: Path, **changes: Any) -> study.Settings:
+    """One IPPO run on the paper's scenario: 300 decisions, 2 evaluation seeds of 0.2 h."""
+    fields: dict[str, Any] = {
+        "out": out,
+        "workers": 1,
+        "algorithms": ("ippo",),
+        "scenarios": ("dahl2004",),
+        "seeds": 1,
+        "decisions": 300,
+        "batch": 150,
+        "curve_points": 1,
+        "eval_seeds": 2,
+        "episode_h": 0.2,
+        "resamples": 100,
+    }
+    return study.Settings(**{**fields, **changes})
+
+
+def test_a_tiny_run_trains_evaluates_reports_and_resumes_without_training(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    outcome = study.run(tiny(tmp_path))
+    saved = json.loads((tmp_path / "runs" / "dahl2004__ippo__seed0.json").read_text())["result"]
+    assert saved["decisions"] >= 300
+    assert saved["curve"][0]["decisions"] == 0  # the untrained network first
+    assert saved["curve"][-1]["decisions"] == saved["decisions"]
+    assert len(saved["eval_values_per_h"]) == 2
+    assert (tmp_path / "networks" / "dahl2004__ippo__seed0.npz").stat().st_size < 100_000
+    assert "| tavc/dahl2004-v0 | ippo | 1 |" in outcome.text
+    assert (tmp_path / "deep_leaderboard.csv").is_file()
+
+    from tavc_agents.learners import torchrl_ppo
+
+    def refuse(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("a saved run was trained again")
+
+    monkeypatch.setattr(torchrl_ppo, "train", refuse)
+    again = study.run(tiny(tmp_path))
+    assert again.text == outcome.text
+
+
+def test_the_report_renders_with_no_run_saved(tmp_path: Path) -> None:
+    outcome = study.run(tiny(tmp_path, max_jobs=0))
+    assert "| tavc/dahl2004-v0 | ippo | 0 | - |" in outcome.text
+    assert "(no run saved yet)" in outcome.text
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("algorithms", ("dqn",)),
+        ("scenarios", ("nowhere",)),
+        ("seeds", 0),
+        ("decisions", 0),
+        ("batch", 1),
+        ("eval_seeds", 0),
+        ("episode_h", -1.0),
+        ("max_jobs", -1),
+        ("references", Path("/nonexistent/references.json")),
+    ],
+)
+def test_bad_settings_are_refused_by_name(tmp_path: Path, field: str, value: Any) -> None:
+    with pytest.raises(ValueError, match=f"{field} = .* is invalid; allowed: "):
+        tiny(tmp_path, **{field: value})
