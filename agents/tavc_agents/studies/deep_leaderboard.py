@@ -33,11 +33,11 @@ import numpy as np
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.experiments.runner import run_trial
-from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
+from tavc_agents.experiments.study import RESULTS_DIR, Outcome
 from tavc_agents.experiments.sweep import json_jobs, saved_results
 from tavc_agents.learners.network import Mlp, NetworkTeam
 from tavc_agents.studies.common import at_least, positive, refuse_invalid
-from tavc_agents.studies.leaderboard import iqm_ci, references
+from tavc_agents.studies.leaderboard import ScoredSettings, iqm_ci, references
 from tavc_agents.studies.scenarios import value_per_hour
 from tavc_env.scenarios import SCENARIOS
 
@@ -54,7 +54,7 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(StudySettings):
+class Settings(ScoredSettings):
     """The deep leaderboard's settings (its command line)."""
 
     reference: ClassVar = "deep_leaderboard"
@@ -92,12 +92,6 @@ class Settings(StudySettings):
     """episode length of training and evaluation, simulated hours (default: the scenario's)"""
     max_jobs: int | None = None
     """run at most this many jobs not yet saved (0: only the report; default: all)"""
-    references: Path = RESULTS_DIR / "scenarios" / "references.json"
-    """the scenarios' committed references (random, stay, optimum) that normalise the scores"""
-    resamples: int = 10_000
-    """bootstrap resamples of every interval"""
-    seed: int = 0
-    """the bootstrap's generator seed"""
     quick: bool = False
     """smoke run: 1 seed, 400 decisions, 2 evaluation seeds of 0.2 h"""
 
@@ -124,14 +118,6 @@ class Settings(StudySettings):
                 ("eval_seeds", self.eval_seeds is None or at_least(self.eval_seeds, 1), ">= 1"),
                 ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
                 ("max_jobs", self.max_jobs is None or at_least(self.max_jobs, 0), "None or >= 0"),
-                ("resamples", at_least(self.resamples, 100), "an integer >= 100"),
-                ("seed", at_least(self.seed, 0), "an integer >= 0"),
-                (
-                    "references",
-                    Path(self.references).is_file(),
-                    "the scenarios study's references.json (python benchmarks/scenarios.py "
-                    "--stage measure)",
-                ),
             ],
         )
 

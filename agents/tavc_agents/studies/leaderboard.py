@@ -28,7 +28,7 @@ from scipy import stats
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.experiments.runner import TrialResult
-from tavc_agents.experiments.study import RESULTS_DIR, Outcome
+from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import TrialSpec
 from tavc_agents.model import load_model
 from tavc_agents.studies.allocators import allocators
@@ -41,22 +41,16 @@ Row = dict[str, Any]
 
 
 @dataclass(frozen=True, kw_only=True)
-class Settings(EvaluationSettings):
-    """The leaderboard's settings (its command line)."""
-
-    reference: ClassVar = "leaderboard"
-    min_seeds: ClassVar = 2  # an interval needs two
-    quick_sizes: ClassVar = {"seeds": 2, "episode_h": 0.5, "resamples": 200}
-    recorded_fields: ClassVar = "scenarios seeds_text episode_text resamples seed"
+class ScoredSettings(StudySettings):
+    """What a study that scores episodes against the scenarios' references takes: the committed
+    references, and the bootstrap's resamples and seed."""
 
     references: Path = RESULTS_DIR / "scenarios" / "references.json"
-    """the scenarios' committed references (random and optimum) that normalise the scores"""
+    """the scenarios' committed references (random, stay, optimum) that normalise the scores"""
     resamples: int = 10_000
     """bootstrap resamples of every interval"""
     seed: int = 0
     """the bootstrap's generator seed"""
-    quick: bool = False
-    """smoke run: 2 seeds, 0.5-h episodes, 200 resamples"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -73,6 +67,19 @@ class Settings(EvaluationSettings):
                 ),
             ],
         )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(EvaluationSettings, ScoredSettings):
+    """The leaderboard's settings (its command line)."""
+
+    reference: ClassVar = "leaderboard"
+    min_seeds: ClassVar = 2  # an interval needs two
+    quick_sizes: ClassVar = {"seeds": 2, "episode_h": 0.5, "resamples": 200}
+    recorded_fields: ClassVar = "scenarios seeds_text episode_text resamples seed"
+
+    quick: bool = False
+    """smoke run: 2 seeds, 0.5-h episodes, 200 resamples"""
 
 
 def specs(s: Settings) -> list[TrialSpec]:
