@@ -28,7 +28,7 @@ from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, Breakdown, make_config
 from tavc_env.env import AecArenaEnv, TavcArenaEnv
-from tavc_env.options import EnvOptions
+from tavc_env.options import OPTION_KEYS, EnvOptions
 
 METRIC = "value_per_hour"
 """The evaluation metric of every scenario: delivered value per simulated hour over the whole
@@ -281,12 +281,12 @@ class ScenarioEnv(TavcArenaEnv):
         **option_overrides: Any,
     ) -> None:
         chosen = scenario_named(scenario)
-        arena_keys = sorted(k for k in option_overrides if k not in _OPTION_NAMES)
+        arena_keys = sorted(k for k in option_overrides if k not in OPTION_KEYS)
         require(
             not arena_keys,
             "scenario env arguments",
             arena_keys,
-            f"env options only ({sorted(_OPTION_NAMES)}): a scenario's arena is fixed "
+            f"env options only ({sorted(OPTION_KEYS)}): a scenario's arena is fixed "
             "(build a tavc_env.scenarios.Scenario of your own to change it)",
         )
         base = options if options is not None else EnvOptions(max_sim_time_s=chosen.episode_s)
@@ -303,9 +303,6 @@ class ScenarioEnv(TavcArenaEnv):
             (math.ceil(at / dt - 1e-9) * dt, values)
             for at, values in shifts.plan(rng, self.options.max_sim_time_s)
         ]
-
-
-_OPTION_NAMES = frozenset(EnvOptions.__dataclass_fields__)
 
 
 def parallel_env(scenario: str | Scenario = "dahl2004", **kwargs: Any) -> ScenarioEnv:
