@@ -1,13 +1,16 @@
 """Decisions per second of the vectorised views with 1 and 2 worker processes, in wall time, in one
 run: `gymnasium.make_vec("tavc/dahl2004-v0", ...)` (the single-robot view) sync 1, async 1 and
 async 2, and the batched multi-agent view (`tavc_env.adapters.batched.BatchedArenaEnv`) in-process
-and with 1 and 2 workers of `--arenas-per-worker` arenas. Ratios are to the 1-worker figure of the
-same round; goal (issue 26): 2 workers >= 1.6 x 1 in both views (exit status 1 if missed). Writes
-`vector_throughput.{csv,md,json}` into a new run folder under runs/ (git ignores it), `--out`, or
-with `--update-reference` benchmarks/results/vector_throughput/. The study is
-`tavc_agents.studies.vector_throughput`.
+and with 1 and 2 workers, for each of `--arenas-per-worker` (default 4 and 16 arenas per worker).
+Every round also measures the machine's ceiling (two independent processes stepping the
+single-robot view, over one) and reports each 2-worker ratio as a share of it, with the measured
+parts that explain the gap (the workers' step cost and its spread, measured in-process; the
+parent's CPU per vector step). Ratios are to the 1-worker figure of the same round; goal (issue 26):
+2 workers >= 1.6 x 1 in both views (exit status 1 if missed). Writes `vector_throughput.{csv,md,json}`
+into a new run folder under runs/ (git ignores it), `--out`, or with `--update-reference`
+benchmarks/results/vector_throughput/. The study is `tavc_agents.studies.vector_throughput`.
 
-    python benchmarks/vector_throughput.py               # ~2 min on 2 cores
+    python benchmarks/vector_throughput.py               # a few minutes on 2 idle cores
     python benchmarks/vector_throughput.py --quick
 """
 
