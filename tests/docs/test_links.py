@@ -97,7 +97,8 @@ def test_the_home_page_includes_the_readme(tmp_path: Path) -> None:
     """The home page takes the README's opening, commands and tested example by section, so the
     two cannot drift apart; a section named but not marked is found."""
     home = ROOT / "docs" / "index.md"
-    assert {(ROOT / "README.md", s) for s in ("intro", "commands", "example")} <= set(snippets(home))
+    wanted = {(ROOT / "README.md", section) for section in ("intro", "commands", "example")}
+    assert wanted <= set(snippets(home))
     page = tmp_path / "page.md"
     page.write_text('--8<-- "README.md:intro"\n--8<-- "README.md:no_such_section"\n', "utf-8")
     assert unmarked_sections(page) == ["README.md:no_such_section"]
