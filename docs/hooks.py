@@ -14,7 +14,10 @@ check that its target exists. The site serves only what is under docs/, so at bu
   target's repository path in a code span, since the site does not carry it.
 
 Nothing is copied into docs/: the files are read from where they are committed. Fenced code
-blocks and inline code are left alone.
+blocks and inline code are left alone, except that the docs tests' `no-run` mark on a fence
+(```` ```python no-run ````, pseudo-code the tests only compile) is dropped: pymdownx.superfences
+does not take a fence whose info string has a bare word after the language, and would show the
+block as text.
 """
 
 from __future__ import annotations
@@ -38,6 +41,8 @@ TOKEN = re.compile(
 # A fenced code block, from its opening fence to its closing one.
 FENCED = re.compile(r"(^[ \t]*(?:```|~~~).*\n[\s\S]*?^[ \t]*(?:```|~~~)[ \t]*$)", re.MULTILINE)
 SCHEME = re.compile(r"^[a-z][a-z0-9+.-]*:")
+# The opening fence of a block the docs tests only compile (tests/docs/test_code_blocks.py).
+NO_RUN = re.compile(r"\A([ \t]*(?:```|~~~)[\w+-]+)[ \t]+no-run[ \t]*$", re.MULTILINE)
 
 
 def _root(config: Any) -> Path:
@@ -137,4 +142,6 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str
     pieces = FENCED.split(markdown)
     for i in range(0, len(pieces), 2):
         pieces[i] = _rewrite(pieces[i], page_dir, docs, root, page.file.src_uri, files)
+    for i in range(1, len(pieces), 2):
+        pieces[i] = NO_RUN.sub(r"\1", pieces[i])
     return "".join(pieces)

@@ -5,7 +5,7 @@ a page links to a committed report (Markdown), a table (CSV) and a figure under
 `benchmarks/results/`, and to a source file the site does not carry. The report's link must
 resolve to a page of the site (rendered, with the report's own figure and its link to a second
 report working too), the table and the figure must be files of the site, and the source file must
-be shown as its repository path, not as a dead link.
+be shown as its repository path, not as a dead link. A `python no-run` block stays a code block.
 """
 
 from __future__ import annotations
@@ -34,7 +34,8 @@ def test_report_links_resolve_on_the_built_site(tmp_path: Path) -> None:
     _write(
         tmp_path / "mkdocs.yml",
         f"site_name: t\ndocs_dir: docs\nuse_directory_urls: false\nhooks:\n  - {HOOK}\n"
-        "validation:\n  links:\n    not_found: warn\n    unrecognized_links: warn\n",
+        "validation:\n  links:\n    not_found: warn\n    unrecognized_links: warn\n"
+        "markdown_extensions:\n  - pymdownx.superfences\n",
     )
     _write(
         tmp_path / "docs" / "index.md",
@@ -43,7 +44,8 @@ def test_report_links_resolve_on_the_built_site(tmp_path: Path) -> None:
         "[the table](../benchmarks/results/study/trials.csv) and the\n"
         "[code](../src/model.py).\n\n"
         "![the figure](../benchmarks/results/study/figure.png)\n\n"
-        "`[not a link](../benchmarks/results/study/unlinked.md)`\n",
+        "`[not a link](../benchmarks/results/study/unlinked.md)`\n\n"
+        "```python no-run\nimport not_run\n```\n",
     )
     study = tmp_path / "benchmarks" / "results" / "study"
     _write(study / "report.md", "# Report\n\n![fig](figure.png) [details](details.md)\n")
@@ -73,4 +75,7 @@ def test_report_links_resolve_on_the_built_site(tmp_path: Path) -> None:
     # Only what a page links to is published; what the site does not carry is named, not linked.
     assert not (site / "benchmarks/results/study/unlinked.html").exists()
     assert "<code>src/model.py</code>" in home
+    # A block the tests only compile is still a code block, not text with its fences.
+    assert "no-run" not in home and "```" not in home
+    assert re.search(r"<code[^>]*>(?:(?!</code>).)*not_run", home, re.DOTALL)
     assert "model.py" not in " ".join(links)
