@@ -1,6 +1,7 @@
 """The Markdown of the documentation, read for the docs tests: README.md, every page under docs/
-and the files the pages include (`--8<-- "DESIGN.md"`: pymdownx.snippets, paths from the
-repository root), with their fenced code blocks."""
+and the files the pages include (`--8<-- "DESIGN.md"`, or a marked section of one,
+`--8<-- "README.md:example"`: pymdownx.snippets, paths from the repository root), with their fenced
+code blocks."""
 
 from __future__ import annotations
 
@@ -32,9 +33,19 @@ class Block:
         return f"{self.path.relative_to(ROOT)}:{self.line}"
 
 
+def snippets(path: Path) -> list[tuple[Path, str | None]]:
+    """What a page includes with pymdownx.snippets: (file, section or None) for every
+    `--8<-- "FILE"` or `--8<-- "FILE:SECTION"` line (paths from the repository root)."""
+    found = []
+    for name in SNIPPET.findall(path.read_text(encoding="utf-8")):
+        file, _, section = name.partition(":")
+        found.append((ROOT / file, section or None))
+    return found
+
+
 def snippet_targets(path: Path) -> list[Path]:
     """The files a page includes with pymdownx.snippets (paths from the repository root)."""
-    return [ROOT / name for name in SNIPPET.findall(path.read_text(encoding="utf-8"))]
+    return [file for file, _ in snippets(path)]
 
 
 def documentation_files() -> list[Path]:

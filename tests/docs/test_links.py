@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.docs.markdown import ROOT, documentation_files, fenced_blocks, snippet_targets
+from tests.docs.markdown import ROOT, documentation_files, fenced_blocks, snippet_targets, snippets
 
 INLINE_CODE = re.compile(r"(`+)(?:(?!\1)[\s\S])+?\1")
 INLINE_LINK = re.compile(r"!?\[(?:[^\[\]]|\[[^\[\]]*\])*\]\(\s*(<[^>]*>|[^)\s]+)(?:\s+[^)]*)?\)")
@@ -72,6 +72,36 @@ def test_every_relative_link_points_at_a_file(path: Path) -> None:
 @pytest.mark.parametrize("path", FILES, ids=lambda p: p.relative_to(ROOT).as_posix())
 def test_every_included_file_exists(path: Path) -> None:
     assert [t for t in snippet_targets(path) if not t.is_file()] == []
+
+
+def unmarked_sections(path: Path) -> list[str]:
+    """The sections a page includes (`--8<-- "FILE:SECTION"`) that their file does not mark
+    exactly once with `--8<-- [start:SECTION]` ... `--8<-- [end:SECTION]`, in that order."""
+    problems = []
+    for file, section in snippets(path):
+        if section is None or not file.is_file():
+            continue
+        text = file.read_text(encoding="utf-8")
+        start, end = f"--8<-- [start:{section}]", f"--8<-- [end:{section}]"
+        if text.count(start) != 1 or text.count(end) != 1 or text.find(start) > text.find(end):
+            problems.append(f"{file.name}:{section}")
+    return problems
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_every_included_section_is_marked(path: Path) -> None:
+    assert unmarked_sections(path) == []
+
+
+def test_the_home_page_includes_the_readme(tmp_path: Path) -> None:
+    """The home page takes the README's opening, commands and tested example by section, so the
+    two cannot drift apart; a section named but not marked is found."""
+    home = ROOT / "docs" / "index.md"
+    wanted = {(ROOT / "README.md", section) for section in ("intro", "commands", "example")}
+    assert wanted <= set(snippets(home))
+    page = tmp_path / "page.md"
+    page.write_text('--8<-- "README.md:intro"\n--8<-- "README.md:no_such_section"\n', "utf-8")
+    assert unmarked_sections(page) == ["README.md:no_such_section"]
 
 
 def test_a_broken_link_is_found(tmp_path: Path) -> None:
