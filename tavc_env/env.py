@@ -22,7 +22,8 @@ observation modes and formats. `tavc_env.v0` keeps v0 for saved work.
 Robots that do not have to decide may be given any action (or none): it is ignored. A robot that
 has to decide must be given a valid action, or `step` raises a ValueError and changes nothing. In
 the AEC view (`env()`), the agent that is given a bad action gets the ValueError at once, and the
-env is left as it was.
+env is left as it was; so does a call out of order (before `reset`, after the end, for an unknown
+agent: `OrderCheckingWrapper`).
 
 ## Copying
 
@@ -597,7 +598,8 @@ class OrderCheckingWrapper(OrderEnforcingWrapper[str, dict[str, np.ndarray], int
     `agent_iter`, `state` and `render` before `reset`, an unknown agent, `step` or `last` after the
     episode ended (every agent done and stepped out) and a second agent from `agent_iter` without
     a `step` between each raise a ValueError saying what was called and what is allowed, where
-    PettingZoo's own wrapper raises a bare AssertionError or KeyError, or only warns."""
+    PettingZoo's own wrapper raises a bare AssertionError or KeyError, or only warns. A refused
+    call changes nothing. After the end, `observe` still gives an agent's last observation."""
 
     def __init__(self, aec: AecArenaEnv) -> None:
         super().__init__(aec)
