@@ -441,7 +441,13 @@ def _check_arguments(args: argparse.Namespace) -> None:
     """Refuse (a ValueError naming the option, its value and what is allowed) what the parser
     let through but no command can use: hours, minutes, rates and seeds out of range, the plot's
     window, and input files that are not there or are folders; before any work starts."""
-    from tavc_agents.experiments.limits import SEEDS, hours_allowed, valid_hours, valid_seed
+    from tavc_agents.experiments.limits import (
+        MAX_HOURS,
+        SEEDS,
+        hours_allowed,
+        valid_hours,
+        valid_seed,
+    )
 
     hours = [("measured_h", False), ("convergence_h", True), ("from_h", True), ("to_h", True)]
     for name, zero in hours:
@@ -452,7 +458,10 @@ def _check_arguments(args: argparse.Namespace) -> None:
             )
     minutes = getattr(args, "minutes", None)
     if minutes is not None and not valid_hours(minutes / 60, zero=False):
-        raise ValueError(f"--minutes = {minutes}; allowed: {hours_allowed(zero=False)} x 60")
+        raise ValueError(
+            f"--minutes = {minutes}; allowed: a finite number > 0 and <= {MAX_HOURS * 60:g} "
+            "(simulated minutes)"
+        )
     for name in ("frame_s", "fps"):
         value = getattr(args, name, None)
         if value is not None and not (math.isfinite(value) and value > 0):

@@ -46,7 +46,10 @@ def trial_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
         (["trial", "--seed", "1" + "0" * 25], f"--seed = 1{'0' * 25}; allowed: an integer in"),
         (["trial", "--seed", str(2**63)], f"--seed = {2**63}; allowed"),
         (["record", "--seed", "-5"], "--seed = -5; allowed"),
-        (["record", "--minutes", "1e308"], "--minutes = 1e+308; allowed"),
+        (
+            ["record", "--minutes", "1e308"],
+            "--minutes = 1e+308; allowed: a finite number > 0 and <=",
+        ),
         (
             ["trial", "--allocator", "network", "--param", "weights=/nonexistent.npz"],
             "network file /nonexistent.npz does not exist; allowed: an .npz written by Mlp.save",
