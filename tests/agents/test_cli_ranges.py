@@ -5,6 +5,8 @@ each in one line with exit code 2, never a traceback from deep inside a trial.""
 from __future__ import annotations
 
 import dataclasses
+import importlib
+import pkgutil
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +14,7 @@ import pytest
 
 from tavc_agents import studies
 from tavc_agents.experiments import limits
+from tavc_agents.experiments.study import StudySettings
 from tavc_agents.learners.network import Mlp
 from tests.agents.test_cli import TINY, run
 
@@ -146,20 +149,42 @@ def test_the_ray_backend_without_ray_is_refused_when_the_settings_are_read(
     assert module.Settings(backend="ray", out=tmp_path).backend == "ray"
 
 
+def _every_studys_settings() -> list[type[StudySettings]]:
+    """The settings class of every study module (those behind `tavc bench` and the others the
+    benchmark scripts run: scenarios, leaderboard, deep_leaderboard)."""
+    found = []
+    for info in pkgutil.iter_modules(studies.__path__):
+        module = importlib.import_module(f"tavc_agents.studies.{info.name}")
+        settings = getattr(module, "Settings", None)
+        if isinstance(settings, type) and issubclass(settings, StudySettings):
+            found.append(settings)
+    return found
+
+
 def test_every_studys_seed_and_hour_fields_are_checked() -> None:
-    """The check goes by field name: every study's seed and hour fields match it (a new field
-    named otherwise would escape it; this lists them so a reviewer sees)."""
-    checked = []
-    for name in sorted(studies.STUDIES):
-        for field in dataclasses.fields(studies.load(name).Settings):
+    """The check goes by field name: every study's seed and hour fields match it and are of the
+    types it checks (a new field named otherwise would escape it; this lists them)."""
+    classes = _every_studys_settings()
+    assert len(classes) >= 20
+    checked = set()
+    for settings in classes:
+        for field in dataclasses.fields(settings):
             n = field.name
             if n in ("seed", "seed0") or n.endswith("_seed"):
-                checked.append(n)
-                assert field.type in (int, "int"), (name, n)
+                checked.add(n)
+                assert field.type in (int, "int"), (settings, n, field.type)
             elif n == "hours" or n.endswith(("_hours", "_h")):
-                checked.append(n)
-                assert field.type in (float, "float"), (name, n)
-    assert {"seed", "seed0", "arena_seed", "hours", "measured_h", "e_hours"} <= set(checked)
+                checked.add(n)
+                assert field.type in (float, "float", "float | None"), (settings, n, field.type)
+    assert {"seed", "seed0", "arena_seed", "hours", "measured_h", "e_hours", "episode_h"} <= checked
+
+
+def test_a_setting_left_to_its_default_is_not_checked() -> None:
+    from tavc_agents.studies import scenarios
+
+    assert scenarios.Settings(out=Path("unused")).episode_h is None
+    with pytest.raises(ValueError, match=r"^episode_h = inf is invalid; allowed: a finite number"):
+        scenarios.Settings(episode_h=float("inf"), out=Path("unused"))
 
 
 def test_the_limits_themselves() -> None:

@@ -51,10 +51,12 @@ def check_settings(settings: object) -> None:
     """Refuse (ValueError naming the field) a study setting out of range: a seed (`seed`, `seed0`,
     `*_seed`; not `seeds`, a count) outside [0, 2**63 - 1], simulated hours (`hours`, `*_hours`,
     `*_h`) not finite or outside [0, MAX_HOURS] (a study refuses 0 where it needs more), and
-    `backend = 'ray'` without Ray."""
+    `backend = 'ray'` without Ray. None (a default decided later) is not checked here."""
     assert dataclasses.is_dataclass(settings)
     for field in dataclasses.fields(settings):
         name, value = field.name, getattr(settings, field.name)
+        if value is None:  # a setting left to its default (e.g. a scenario's own episode)
+            continue
         if name in ("seed", "seed0") or name.endswith("_seed"):
             if not valid_seed(value):
                 raise ValueError(f"{name} = {value!r} is invalid; allowed: {SEEDS}")
