@@ -22,7 +22,8 @@ observation modes and formats. `tavc_env.v0` keeps v0 for saved work.
 Robots that do not have to decide may be given any action (or none): it is ignored. A robot that
 has to decide must be given a valid action, or `step` raises a ValueError and changes nothing. In
 the AEC view (`env()`), the agent that is given a bad action gets the ValueError at once, and the
-env is left as it was.
+env is left as it was; so does a call out of order (before `reset`, after the end, for an unknown
+agent: `OrderCheckingWrapper`).
 
 ## Copying
 
@@ -48,6 +49,7 @@ import copy
 import copyreg
 import hashlib
 import math
+import reprlib
 import weakref
 from array import array
 from collections.abc import Mapping
@@ -60,6 +62,10 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.env import AECEnv
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
+from pettingzoo.utils.wrappers.order_enforcing import (
+    AECOrderEnforcingIterable,
+    AECOrderEnforcingIterator,
+)
 
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
@@ -587,10 +593,95 @@ class AecArenaEnv(parallel_to_aec_wrapper):
         super().step(action)
 
 
+class OrderCheckingWrapper(OrderEnforcingWrapper[str, dict[str, np.ndarray], int | None]):
+    """PettingZoo's order enforcing, with the package's errors: `step`, `observe`, `last`,
+    `agent_iter`, `state` and `render` before `reset`, an unknown agent, `step` or `last` after the
+    episode ended (every agent done and stepped out) and a second agent from `agent_iter` without
+    a `step` between each raise a ValueError saying what was called and what is allowed, where
+    PettingZoo's own wrapper raises a bare AssertionError or KeyError, or only warns. A refused
+    call changes nothing. After the end, `observe` still gives an agent's last observation."""
+
+    def __init__(self, aec: AecArenaEnv) -> None:
+        super().__init__(aec)
+        self.arena = aec.arena
+
+    def _require_reset(self, call: str) -> None:
+        if not self._has_reset:
+            raise ValueError(f"{call} called before reset(); allowed: call reset() first")
+
+    def _require_running(self, call: str) -> None:
+        self._require_reset(call)
+        if not self.env.agents:
+            raise ValueError(
+                f"{call} called after the episode ended (every agent is done); "
+                "allowed: call reset() first"
+            )
+
+    def step(self, action: int | None) -> None:
+        self._require_running(f"step({reprlib.repr(action)})")
+        self.env.step(action)
+        self._has_updated = True  # only a step taken counts: a refused one can be given again
+
+    def observe(self, agent: str) -> dict[str, np.ndarray] | None:
+        self._require_reset(f"observe({reprlib.repr(agent)})")
+        self.arena._agent_index(agent, "agent")
+        return self.env.observe(agent)
+
+    def last(
+        self, observe: bool = True
+    ) -> tuple[dict[str, np.ndarray] | None, float, bool, bool, dict[str, Any]]:
+        self._require_running("last()")
+        return self.env.last(observe)
+
+    def agent_iter(self, max_iter: int = 2**63) -> AECOrderEnforcingIterable[str, Any, Any]:
+        self._require_reset("agent_iter()")
+        require(is_integer(max_iter) and max_iter >= 0, "max_iter", max_iter, "an integer >= 0")
+        return _CheckedIterable(self, int(max_iter))
+
+    def state(self) -> np.ndarray:
+        self._require_reset("state()")
+        return self.env.state()
+
+    def render(self) -> np.ndarray | str | list[Any] | None:
+        self._require_reset("render()")
+        return self.env.render()
+
+
+class _CheckedIterable(AECOrderEnforcingIterable[str, Any, Any]):
+    def __iter__(self) -> _CheckedIterator:
+        assert isinstance(self.env, OrderCheckingWrapper)
+        return _CheckedIterator(self.env, self.max_iter)
+
+
+class _CheckedIterator(AECOrderEnforcingIterator[str, Any, Any]):
+    """`agent_iter`'s iterator: the next agent only after a `step` (a ValueError otherwise)."""
+
+    def __next__(self) -> str:
+        env = self.env
+        assert isinstance(env, OrderCheckingWrapper)
+        if not env.env.agents or self.iters_til_term <= 0:
+            raise StopIteration
+        if not env._has_updated:
+            raise ValueError(
+                f"the next agent of agent_iter() was asked for before step() of "
+                f"{env.env.agent_selection}; allowed: call step() once for each agent it yields"
+            )
+        self.iters_til_term -= 1
+        env._has_updated = False
+        return env.env.agent_selection
+
+
+def aec_view(arena: ArenaEnv[Any]) -> OrderCheckingWrapper:
+    """The AEC view of a parallel arena env (this module's, a scenario's, v0's): PettingZoo's
+    conversion, each action checked when it is given (`AecArenaEnv`), the order of calls checked
+    with the package's errors (`OrderCheckingWrapper`)."""
+    return OrderCheckingWrapper(AecArenaEnv(arena))
+
+
 def env(**kwargs: Any) -> AECEnv[str, dict[str, np.ndarray], int | None]:
     """The arena as a PettingZoo AEC env: PettingZoo's conversion of the parallel env, with each
-    action checked when it is given (see `AecArenaEnv`)."""
-    return OrderEnforcingWrapper(AecArenaEnv(parallel_env(**kwargs)))
+    action and the order of calls checked when they are given (see `aec_view`)."""
+    return aec_view(parallel_env(**kwargs))
 
 
 # -- copying an arena: rebuild by replay (see the module's docstring) --------------------------------

@@ -23,11 +23,10 @@ from typing import Any
 
 import numpy as np
 from pettingzoo.utils.env import AECEnv
-from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, Breakdown, make_config
-from tavc_env.env import AecArenaEnv, TavcArenaEnv
+from tavc_env.env import TavcArenaEnv, aec_view
 from tavc_env.options import OPTION_KEYS, EnvOptions
 
 METRIC = "value_per_hour"
@@ -314,4 +313,4 @@ def env(
     scenario: str | Scenario = "dahl2004", **kwargs: Any
 ) -> AECEnv[str, dict[str, np.ndarray], int | None]:
     """The scenario as a PettingZoo AEC env."""
-    return OrderEnforcingWrapper(AecArenaEnv(parallel_env(scenario, **kwargs)))
+    return aec_view(parallel_env(scenario, **kwargs))

@@ -12,10 +12,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 from pettingzoo.utils.env import AECEnv
-from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from tavc_env._validation import require
-from tavc_env.env import PHASES, AecArenaEnv, TavcArenaEnv, completed_task_s
+from tavc_env.env import PHASES, TavcArenaEnv, aec_view, completed_task_s
 
 ENV_NAME_V0 = "tavc_arena_v0"
 
@@ -50,4 +49,4 @@ def parallel_env(**kwargs: Any) -> TavcArenaEnvV0:
 
 def env(**kwargs: Any) -> AECEnv[str, dict[str, np.ndarray], int | None]:
     """The v0 arena as a PettingZoo AEC env."""
-    return OrderEnforcingWrapper(AecArenaEnv(parallel_env(**kwargs)))
+    return aec_view(parallel_env(**kwargs))

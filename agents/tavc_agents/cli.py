@@ -121,11 +121,15 @@ def cmd_trial(args: argparse.Namespace) -> int:
     overrides = arena_overrides(args.set)
     make_config(args.preset, **overrides)
     total = args.convergence_h + args.measured_h
-    bar = tqdm(total=round(total * 3600), unit="sim s", dynamic_ncols=True, file=sys.stderr)
+    bars: list[Any] = []  # made at the first report, so a trial refused as it starts shows none
     done = [0]
 
     def progress(t: float) -> None:
-        bar.update(round(t) - done[0])
+        if not bars:
+            bars.append(
+                tqdm(total=round(total * 3600), unit="sim s", dynamic_ncols=True, file=sys.stderr)
+            )
+        bars[0].update(round(t) - done[0])
         done[0] = round(t)
 
     try:
@@ -139,7 +143,8 @@ def cmd_trial(args: argparse.Namespace) -> int:
             arena=overrides,
         )
     finally:
-        bar.close()
+        for bar in bars:
+            bar.close()
     print(summary(result, args.allocator))
     if args.out is not None:
         result.save(args.out)
@@ -238,15 +243,15 @@ def cmd_plot(args: argparse.Namespace) -> int:
                 "by tavc bench interference"
             )
         source = args.source or RESULTS_DIR / "interference.csv"
-        plots.interference_curve(_existing(source), args.out)
+        plots.interference_curve(_existing(source, "an interference.csv"), args.out)
     elif args.what == "table1":
         from tavc_agents.studies import table1
 
-        table1.draw_figure(_existing(args.source), args.figure, args.out)
+        table1.draw_figure(Path(args.source), args.figure, args.out)
     else:
         trials = {}
         for source in args.source_list:
-            result = TrialResult.load(_existing(source))
+            result = TrialResult.load(source)
             trials[result.label or Path(source).stem] = result
         if args.what == "timeline":
             plots.allocation_timeline(trials, args.out, args.from_h, args.to_h)
@@ -258,12 +263,17 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
-def _existing(path: str | Path) -> Path:
-    if not Path(path).exists():
+def _existing(path: str | Path, allowed: str, *, folder: bool = False) -> Path:
+    """`path`, if it is an existing file (or folder, if `folder`); a ValueError saying what it
+    is and what is `allowed` otherwise (checked when the command line is read)."""
+    path = Path(path)
+    if not path.exists():
+        raise ValueError(f"{path} does not exist; allowed: {allowed}")
+    if path.is_dir() != folder:
         raise ValueError(
-            f"{path} does not exist; allowed: a results file written by tavc or a benchmark"
+            f"{path} is {'not a folder' if folder else 'a folder'}; allowed: {allowed}"
         )
-    return Path(path)
+    return path
 
 
 def _run_study(name: str, argv: Sequence[str], prog: str) -> int:
@@ -427,6 +437,58 @@ def parser() -> argparse.ArgumentParser:
     return top
 
 
+def _check_arguments(args: argparse.Namespace) -> None:
+    """Refuse (a ValueError naming the option, its value and what is allowed) what the parser
+    let through but no command can use: hours, minutes, rates and seeds out of range, the plot's
+    window, and input files that are not there or are folders; before any work starts."""
+    from tavc_agents.experiments.limits import (
+        MAX_HOURS,
+        SEEDS,
+        hours_allowed,
+        valid_hours,
+        valid_seed,
+    )
+
+    hours = [("measured_h", False), ("convergence_h", True), ("from_h", True), ("to_h", True)]
+    for name, zero in hours:
+        value = getattr(args, name, None)
+        if value is not None and not valid_hours(value, zero=zero):
+            raise ValueError(
+                f"--{name.replace('_', '-')} = {value}; allowed: {hours_allowed(zero=zero)}"
+            )
+    minutes = getattr(args, "minutes", None)
+    if minutes is not None and not valid_hours(minutes / 60, zero=False):
+        raise ValueError(
+            f"--minutes = {minutes}; allowed: a finite number > 0 and <= {MAX_HOURS * 60:g} "
+            "(simulated minutes)"
+        )
+    for name in ("frame_s", "fps"):
+        value = getattr(args, name, None)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")
+    seed = getattr(args, "seed", None)
+    if seed is not None and not valid_seed(seed):
+        raise ValueError(f"--seed = {seed}; allowed: {SEEDS}")
+    if getattr(args, "what", None) is None:
+        return
+    args.source = args.source_list[0] if args.source_list else None
+    if args.what != "interference" and not args.source_list:
+        raise ValueError(
+            f"plot {args.what} needs its input; allowed: trial JSON file(s) for timeline and "
+            "q, a table1 output folder for table1"
+        )
+    if args.from_h is not None and args.to_h is not None and not args.from_h < args.to_h:
+        raise ValueError(
+            f"--from-h = {args.from_h} and --to-h = {args.to_h} are invalid together; allowed: "
+            "--from-h below --to-h"
+        )
+    if args.what == "table1":
+        _existing(args.source, "an output folder of the table1 study", folder=True)
+    elif args.what in ("timeline", "q"):
+        for source in args.source_list:
+            _existing(source, "a trial JSON file (tavc trial --out, or a study's saved trial)")
+
+
 def _strip(args: Sequence[str]) -> list[str]:
     return list(args[1:]) if args and args[0] == "--" else list(args)
 
@@ -446,20 +508,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.script_args = [*extra, *args.script_args]
     if getattr(args, "name", None) is not None and args.name not in studies.STUDIES:
         refuse(f"study {args.name!r} is unknown; allowed: {sorted(studies.STUDIES)}")
-    for name in ("measured_h", "minutes", "frame_s", "fps"):
-        value = getattr(args, name, None)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            refuse(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")
-    if getattr(args, "what", None) is not None:
-        args.source = args.source_list[0] if args.source_list else None
-        if args.what != "interference" and not args.source_list:
-            refuse(
-                f"plot {args.what} needs its input; allowed: trial JSON file(s) for timeline and "
-                "q, a table1 output folder for table1"
-            )
-    convergence = getattr(args, "convergence_h", 0.0)
-    if not (math.isfinite(convergence) and convergence >= 0):
-        refuse(f"--convergence-h = {convergence}; allowed: a finite number >= 0")
+    try:
+        _check_arguments(args)
+    except ValueError as error:
+        refuse(str(error))
     try:
         if getattr(args, "out", None) is not None:
             from tavc_agents.experiments.files import check_writable

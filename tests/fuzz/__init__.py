@@ -6,6 +6,9 @@ streams, seeds and stored trial files, checked against the package's promises:
 * an invalid one raises a ValueError whose message names the offending field;
 * a bad action or seed raises a ValueError naming it and changes nothing; the AEC view and the
   parallel view agree step for step on the same actions;
+* any sequence of calls to the AEC view (reset, step, observe, last, agent_iter, state; before
+  reset, mid-episode, after the end; valid and unknown agents and actions) does what the AEC
+  contract says or raises the package's ValueError, changing nothing;
 * a truncated, garbled or edited trial file raises `CorruptFileError` (a ValueError) naming the
   file, and a resumed sweep runs that trial again; no trial file is lost or left half-written.
 

@@ -26,6 +26,7 @@ from typing import Any, ClassVar, Literal, TypeVar
 
 import tyro
 
+from tavc_agents.experiments.limits import check_settings
 from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TRIALS, JobKind, TrialSpec
@@ -79,6 +80,7 @@ class StudySettings:
     --update-reference)"""
 
     def __post_init__(self) -> None:
+        check_settings(self)  # seeds, hours, the Ray backend (before any work)
         if self.workers is not None and (not isinstance(self.workers, int) or self.workers < 1):
             raise ValueError(f"workers = {self.workers!r} is invalid; allowed: an integer >= 1")
         given = [
