@@ -546,7 +546,7 @@ def _run_in_pool(
         pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _end_workers(pool: ProcessPoolExecutor, grace_s: float = 1.0) -> None:
+def _end_workers(pool: ProcessPoolExecutor, grace_s: float = 0.5) -> None:
     """Cancel the queued jobs of `pool` and end its workers: SIGTERM, then SIGKILL after
     `grace_s`. Further Ctrl-C or SIGTERM are ignored meanwhile (the stop is under way)."""
     with _signals_ignored():

@@ -70,9 +70,11 @@ def test_a_folder_this_user_may_not_write_is_refused(
     monkeypatch.setattr(folders.os, "access", lambda path, mode: False)
     with pytest.raises(FolderError, match="may not write in"):
         check_out_folder(tmp_path / "new")
-    with pytest.raises(FolderError, match="cannot write in the output folder"):
-        with hold_folder(tmp_path / "new"):
-            pass
+    with (
+        pytest.raises(FolderError, match="cannot write in the output folder"),
+        hold_folder(tmp_path / "new"),
+    ):
+        pass
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="a superuser writes in a read-only folder")
