@@ -68,7 +68,8 @@ def check_out_folder(folder: str | Path, option: str = "--out") -> Path:
         raise FolderError(f"{option} {text!r} is invalid: {existing} is not a folder; {allowed}")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise FolderError(
-            f"{option} {text!r} is invalid: this user may not write in {existing}; {allowed}"
+            f"{option} {text!r} is invalid: this user may not write in {existing} (its "
+            f"permissions, or a read-only file system); {allowed}"
         )
     return path
 
@@ -95,14 +96,17 @@ def hold_folder(folder: str | Path) -> Iterator[Path]:
         info = path.stat()
     except OSError as error:
         raise FolderError(f"cannot make the output folder {path}: {_reason(error)}") from None
-    if not os.access(path, os.W_OK | os.X_OK):
-        raise FolderError(f"cannot write in the output folder {path}: permission denied")
     ident = (info.st_dev, info.st_ino)
     if ident in _held:
         fd, count = _held[ident]
         _held[ident] = (fd, count + 1)
     else:
-        fd = _lock(path)
+        fd = _lock(path)  # creating the lock file also tries the folder (a read-only one fails)
+        if not os.access(path, os.W_OK | os.X_OK):  # its lock file was there and writable
+            os.close(fd)
+            raise FolderError(
+                f"cannot write in the output folder {path}: this user may not write in it"
+            )
         _held[ident] = (fd, 1)
     try:
         yield path
