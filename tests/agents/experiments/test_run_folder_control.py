@@ -298,3 +298,13 @@ def test_a_trial_record_carries_its_periods() -> None:
     assert not TRIALS.same(spec_record(half), wanted)  # other periods: refused on resume
     old = {k: v for k, v in wanted.items() if k != "arena"}  # saved before arena digests
     assert TRIALS.same(old, wanted) and not TRIALS.same(old, spec_record(half))
+
+
+def test_git_ignores_the_lock_in_committed_result_folders() -> None:
+    if not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    for folder in ("benchmarks/results/passing/trials", "benchmarks/results", "runs/x"):
+        checked = subprocess.run(
+            ["git", "check-ignore", "-q", f"{folder}/{LOCK_FILE}"], cwd=ROOT, timeout=30
+        )
+        assert checked.returncode == 0, folder
