@@ -263,7 +263,9 @@ def run_study(
     """Parse a study's settings from `argv`, say where it writes, run it, print its results table,
     where it wrote, and whether its tables agree with the committed reference (the module's
     `agreement(out, reference)` if it has one, else `compare_tables`). The exit code is 1 if the
-    study says it failed (`outcome.failures`, e.g. a long run that found a gap)."""
+    study says it failed (`outcome.failures`, e.g. a long run that found a gap). The output folder
+    is checked before any work and held for the whole run (`folders`): a folder that cannot be
+    used, or that another run is writing, is refused in one line with exit code 2."""
     given = list(sys.argv[1:] if argv is None else argv)
     settings = parse_settings(module.Settings, given, description, prog)
     out = settings.out_dir()

@@ -6,7 +6,10 @@ checksum) by the process that ran it, before its result travels anywhere, so not
 to the sweep afterwards can lose it: a worker's error (the other trials go on; the error names the
 trial, its seed and how to rerun just it), Ctrl-C, SIGTERM, or SIGKILL of the driver (the local
 pool's workers die with it). Rerunning the same sweep loads the finished trials and runs only the
-rest; a stored trial that is corrupt or was edited is reported and run again.
+rest; a stored trial that is corrupt or was edited is reported and run again. A sweep holds its
+folder's lock while it writes (`folders.hold_folder`: a second sweep there is refused at once); a
+save the folder refuses (a full disk) stops the sweep at once (`SaveError`), and Ctrl-C or SIGTERM
+end the pool's workers at once, dropping the queued trials.
 
 Backends: `"local"` (default) runs trials in a process pool over this machine's cores and needs
 nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
