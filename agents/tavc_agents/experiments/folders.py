@@ -118,6 +118,16 @@ def hold_folder(folder: str | Path) -> Iterator[Path]:
             os.close(fd)  # releases the lock
 
 
+def forget_inherited() -> None:
+    """In a forked child (a pool worker): close the lock descriptors inherited from the parent. A
+    flock belongs to the open file, which a fork shares: a child keeping its copy would hold the
+    parent's lock after the parent released it or ended. The parent's own copies keep it."""
+    for fd, _ in _held.values():
+        with contextlib.suppress(OSError):
+            os.close(fd)
+    _held.clear()
+
+
 def _lock(folder: Path) -> int:
     lock = folder / LOCK_FILE
     try:

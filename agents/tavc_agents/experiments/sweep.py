@@ -46,7 +46,7 @@ from typing import Any, Generic, TypeVar
 from tqdm import tqdm
 
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
-from tavc_agents.experiments.folders import hold_folder
+from tavc_agents.experiments.folders import forget_inherited, hold_folder
 from tavc_agents.experiments.registry import REGISTRY, Allocator, make_allocator
 from tavc_agents.experiments.runner import Event, TrialResult, env_arguments, run_trial
 from tavc_env import ArenaConfig
@@ -482,7 +482,8 @@ def _registered_for_workers() -> tuple[Allocator, ...]:
 def _init_worker(parent: int, registered: Sequence[Allocator] = ()) -> None:
     """Pool worker initialiser: the allocators the driver registered at run time (a worker that is
     spawned rather than forked starts without them; entry points it finds itself), then
-    `_die_with_parent`."""
+    `_die_with_parent`. A forked worker lets go of the driver's folder locks it inherited."""
+    forget_inherited()
     for entry in registered:
         REGISTRY.register(entry.name, entry.factory, team=entry.team, replace=True)
     _die_with_parent(parent)
