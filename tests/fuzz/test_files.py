@@ -21,8 +21,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from tavc_agents.experiments.files import CorruptFileError
+from tavc_agents.experiments.folders import LOCK_FILE
 from tavc_agents.experiments.runner import TrialResult
-from tavc_agents.experiments.sweep import SweepError, TrialSpec, run_sweep
+from tavc_agents.experiments.sweep import SaveError, SweepError, TrialSpec, run_sweep
 from tests.fuzz.strategies import fuzz_settings
 
 SPECS = [
@@ -212,12 +213,12 @@ def test_an_interrupted_sweep_leaves_only_whole_trial_files(
 
         with (
             mock.patch("tavc_agents.experiments.files.os.replace", replace),
-            pytest.raises((KeyboardInterrupt, SweepError)),
+            pytest.raises((KeyboardInterrupt, SweepError, SaveError)),  # a refused save stops it
         ):
             run_sweep(SPECS, folder, workers=1, on_done=on_done)
         for path in folder.iterdir():
             assert ".tmp" not in path.name, f"a temporary file was left: {path.name}"
-            if path.name.endswith(".failed.json"):
+            if path.name.endswith(".failed.json") or path.name == LOCK_FILE:
                 continue
             TrialResult.load(path)  # whole (raises CorruptFileError otherwise)
         results = run_sweep(SPECS, folder, workers=1)

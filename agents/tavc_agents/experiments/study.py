@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import datetime as _dt
+import itertools
 import json
 import sys
 from collections.abc import Callable, Mapping, Sequence
@@ -26,10 +27,11 @@ from typing import Any, ClassVar, Literal, TypeVar
 
 import tyro
 
+from tavc_agents.experiments.folders import FolderError, check_out_folder, hold_folder
 from tavc_agents.experiments.limits import check_settings
 from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
 from tavc_agents.experiments.runner import TrialResult
-from tavc_agents.experiments.sweep import TRIALS, JobKind, TrialSpec
+from tavc_agents.experiments.sweep import TRIALS, JobKind, SaveError, TrialSpec
 
 RESULTS_DIR = (CHECKOUT or Path()) / "benchmarks" / "results"
 """The committed reference results of the source checkout (changed only with `--update-reference`).
@@ -149,6 +151,15 @@ class StudySettings:
         return self.run_dir
 
     @property
+    def out_option(self) -> str:
+        """How the output folder was chosen, to name it in a message."""
+        if self.update_reference:
+            return "--update-reference's folder"
+        if self.resume is not None:
+            return "--resume"
+        return "--out" if self.out is not None else "the new run folder"
+
+    @property
     def out_text(self) -> str:
         """The output folder as text (recorded by the studies that record it)."""
         return str(self.out_dir())
@@ -254,14 +265,28 @@ def run_study(
     """Parse a study's settings from `argv`, say where it writes, run it, print its results table,
     where it wrote, and whether its tables agree with the committed reference (the module's
     `agreement(out, reference)` if it has one, else `compare_tables`). The exit code is 1 if the
-    study says it failed (`outcome.failures`, e.g. a long run that found a gap)."""
-    settings = parse_settings(module.Settings, argv, description, prog)
+    study says it failed (`outcome.failures`, e.g. a long run that found a gap). The output folder
+    is checked before any work and held for the whole run (`folders`): a folder that cannot be
+    used, or that another run is writing, is refused in one line with exit code 2."""
+    given = list(sys.argv[1:] if argv is None else argv)
+    settings = parse_settings(module.Settings, given, description, prog)
     out = settings.out_dir()
-    print(f"Writing to {out}/", flush=True)
+    command = prog or f"python {sys.argv[0]}"
     try:
-        outcome: Outcome = module.run(settings)
+        for option in ("--out", "--resume"):  # a Path cannot tell "" from "."
+            if _given_empty(given, option):
+                check_out_folder("", option)
+        check_out_folder(out, settings.out_option)
+        with hold_folder(out):  # a second run on this folder is refused until this one ends
+            print(f"Writing to {out}/", flush=True)
+            outcome: Outcome = module.run(settings)
+    except FolderError as error:  # refused before any work, in one line
+        print(f"{command}: {error}", file=sys.stderr)
+        return 2
+    except SaveError as error:
+        print(f"\n{command}: {error}; continue with `{command} --resume {out}`", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:  # Ctrl-C, or SIGTERM during a sweep: one line, not a traceback
-        command = prog or f"python {sys.argv[0]}"
         print(
             f"\nInterrupted. The finished jobs are saved in {out}/; continue with "
             f"`{command} --resume {out}` (and the same other options).",
@@ -283,6 +308,11 @@ def run_study(
         for line in compare(Path(outcome.out_dir), reference):
             print(line)
     return 1 if outcome.failed else 0
+
+
+def _given_empty(argv: Sequence[str], option: str) -> bool:
+    """Whether `argv` gives `option` an empty value (`--out ""` or `--out=`)."""
+    return f"{option}=" in argv or any(a == option and b == "" for a, b in itertools.pairwise(argv))
 
 
 def compare_tables(out: Path, reference: Path) -> list[str]:

@@ -6,7 +6,10 @@ checksum) by the process that ran it, before its result travels anywhere, so not
 to the sweep afterwards can lose it: a worker's error (the other trials go on; the error names the
 trial, its seed and how to rerun just it), Ctrl-C, SIGTERM, or SIGKILL of the driver (the local
 pool's workers die with it). Rerunning the same sweep loads the finished trials and runs only the
-rest; a stored trial that is corrupt or was edited is reported and run again.
+rest; a stored trial that is corrupt or was edited is reported and run again. A sweep holds its
+folder's lock while it writes (`folders.hold_folder`: a second sweep there is refused at once); a
+save the folder refuses (a full disk) stops the sweep at once (`SaveError`), and Ctrl-C or SIGTERM
+end the pool's workers at once, dropping the queued trials.
 
 Backends: `"local"` (default) runs trials in a process pool over this machine's cores and needs
 nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
@@ -32,6 +35,7 @@ import pickle
 import re
 import signal
 import sys
+import time
 import traceback
 from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -42,6 +46,7 @@ from typing import Any, Generic, TypeVar
 from tqdm import tqdm
 
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
+from tavc_agents.experiments.folders import forget_inherited, hold_folder
 from tavc_agents.experiments.registry import REGISTRY, Allocator, make_allocator
 from tavc_agents.experiments.runner import Event, TrialResult, env_arguments, run_trial
 from tavc_env import ArenaConfig
@@ -248,7 +253,26 @@ def run_jobs(
     if not isinstance(n_workers, int) or n_workers < 1:
         raise ValueError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    with hold_folder(out):  # made if needed, and refused at once if another sweep writes it
+        _remove_temporaries(out, keys)  # left by a sweep that was killed while saving
+        try:
+            return _run_unfinished(
+                jobs, kind, out, n_workers, workers is not None, on_done, backend
+            )
+        finally:
+            _remove_temporaries(out, keys)  # left by workers ended mid-save (Ctrl-C, SIGTERM)
+
+
+def _run_unfinished(
+    jobs: Sequence[J],
+    kind: JobKind[J, R],
+    out: Path,
+    n_workers: int,
+    workers_given: bool,
+    on_done: Callable[[J, R, bool], None] | None,
+    backend: str,
+) -> dict[str, R]:
+    """`run_jobs` in the folder `out`, which this process holds."""
     results: dict[str, R] = {}
     todo: list[J] = []
     for job in jobs:
@@ -269,7 +293,7 @@ def run_jobs(
     def finish(job: J, result: R, saved: bool) -> None:
         key = kind.key(job)
         if not saved:
-            kind.save(result, kind.record(job), result_path(out, key))
+            _save(kind.save, result, kind.record(job), result_path(out, key), kind.unit)
         results[key] = result
         if on_done is not None:
             on_done(job, result, False)
@@ -279,7 +303,7 @@ def run_jobs(
 
     with _stop_on_sigterm():
         if backend == "ray":
-            _run_on_ray(todo, kind.run, n_workers if workers is not None else None, finish, fail)
+            _run_on_ray(todo, kind.run, n_workers if workers_given else None, finish, fail)
         elif n_workers == 1 or len(todo) <= 1:
             for job in todo:
                 task = _Task(
@@ -288,9 +312,12 @@ def run_jobs(
                     job,
                     records[kind.key(job)],
                     result_path(out, kind.key(job)),
+                    kind.unit,
                 )
                 try:
                     result = task()
+                except SaveError:
+                    raise  # a folder that refuses one save refuses the next: stop here
                 except Exception as error:
                     fail(job, error)
                 else:
@@ -378,6 +405,28 @@ def _failure(kind: JobKind[J, R], job: J, error: BaseException, out: Path) -> Fa
     return Failure(key, record, text, path)
 
 
+class SaveError(RuntimeError):
+    """A finished job whose result could not be saved (a full disk, a folder made read-only): the
+    sweep stops at the first one, since every later job would run only to fail at its save too."""
+
+
+def _save(
+    save: Callable[[R, dict[str, Any], Path], None],
+    result: R,
+    record: dict[str, Any],
+    path: Path,
+    unit: str,
+) -> None:
+    try:
+        save(result, record, path)
+    except OSError as error:
+        key = path.name.removesuffix(".json")
+        raise SaveError(
+            f"could not save {unit} {key!r} to {path} ({error.strerror or error}); the sweep "
+            f"stopped at this first refused save, and every {unit} saved before it is kept"
+        ) from None
+
+
 @dataclass(frozen=True)
 class _Task(Generic[J, R]):
     """One job as a worker runs it: run, then save the result before returning it."""
@@ -387,11 +436,28 @@ class _Task(Generic[J, R]):
     job: J
     record: dict[str, Any]
     path: Path
+    unit: str = "job"
 
     def __call__(self) -> R:
         result = self.run(self.job)
-        self.save(result, self.record, self.path)
+        _save(self.save, result, self.record, self.path, self.unit)
         return result
+
+
+def _remove_temporaries(out: Path, keys: Collection[str]) -> None:
+    """Remove the temporary files that saving one of `keys` in `out` leaves if its process is
+    killed mid-save (`files.atomic_path` names them `.<key>.json.<random>.tmp.json`). Called only
+    by the sweep holding the folder, when none of its own saves is under way."""
+    wanted = set(keys)
+    with contextlib.suppress(OSError), os.scandir(out) as entries:
+        for entry in entries:
+            name = entry.name
+            if not (name.startswith(".") and name.endswith(".tmp.json")):
+                continue
+            key, found, _ = name[1 : -len(".tmp.json")].rpartition(".json.")
+            if found and key in wanted and entry.is_file(follow_symlinks=False):
+                with contextlib.suppress(OSError):
+                    os.unlink(entry.path)
 
 
 def _registered_for_workers() -> tuple[Allocator, ...]:
@@ -416,7 +482,8 @@ def _registered_for_workers() -> tuple[Allocator, ...]:
 def _init_worker(parent: int, registered: Sequence[Allocator] = ()) -> None:
     """Pool worker initialiser: the allocators the driver registered at run time (a worker that is
     spawned rather than forked starts without them; entry points it finds itself), then
-    `_die_with_parent`."""
+    `_die_with_parent`. A forked worker lets go of the driver's folder locks it inherited."""
+    forget_inherited()
     for entry in registered:
         REGISTRY.register(entry.name, entry.factory, team=entry.team, replace=True)
     _die_with_parent(parent)
@@ -432,6 +499,14 @@ def _die_with_parent(parent: int) -> None:
     if os.getppid() != parent:  # the parent died before the request took effect
         os._exit(1)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's to handle
+    # The driver terminates its workers to stop a sweep: end at once (not with the driver's
+    # KeyboardInterrupt, which the pool would report back and then run the next queued job). A
+    # save cut short leaves only a temporary file, which the driver removes.
+    signal.signal(signal.SIGTERM, _end_worker)
+
+
+def _end_worker(signum: int, frame: Any) -> None:
+    os._exit(128 + signum)
 
 
 def _run_in_pool(
@@ -451,23 +526,61 @@ def _run_in_pool(
     futures: dict[Future[R], J] = {}
     try:
         for job in todo:
-            task = _Task(
-                kind.run, kind.save, job, records[kind.key(job)], result_path(out, kind.key(job))
-            )
+            key = kind.key(job)
+            task = _Task(kind.run, kind.save, job, records[key], result_path(out, key), kind.unit)
             futures[pool.submit(task)] = job
         pending = set(futures)
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
                 error = future.exception()
+                if isinstance(error, SaveError):
+                    raise error  # a folder that refuses one save refuses the next: stop here
                 if error is not None:
                     fail(futures[future], error)
                 else:
                     finish(futures[future], future.result(), True)
+    except BaseException:
+        # Ctrl-C, SIGTERM or a refused save: every finished job was saved by its worker before it
+        # reported back; the queued ones are dropped and the running ones end with their workers
+        # now, rather than run to their end first.
+        _end_workers(pool)
+        raise
     finally:
-        # On Ctrl-C or SIGTERM: queued jobs are dropped, running ones stop with their workers;
-        # every finished one was saved by its worker before it reported back.
         pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _end_workers(pool: ProcessPoolExecutor, grace_s: float = 0.5) -> None:
+    """Cancel the queued jobs of `pool` and end its workers: SIGTERM, then SIGKILL after
+    `grace_s`. Further Ctrl-C or SIGTERM are ignored meanwhile (the stop is under way)."""
+    with _signals_ignored():
+        # CPython's pool keeps its worker processes here (it has no public way to end them).
+        workers = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in workers:
+            process.terminate()
+        deadline = time.monotonic() + grace_s
+        for process in workers:
+            process.join(max(0.0, deadline - time.monotonic()))
+        for process in workers:
+            if process.is_alive():
+                process.kill()
+                process.join(grace_s)
+
+
+@contextlib.contextmanager
+def _signals_ignored() -> Iterator[None]:
+    """Within the block, SIGINT and SIGTERM are ignored (in the main thread; elsewhere no-op)."""
+    try:
+        previous = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 @contextlib.contextmanager

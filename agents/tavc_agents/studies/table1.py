@@ -27,6 +27,7 @@ import csv
 import dataclasses
 import json
 import math
+import shlex
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,7 +40,7 @@ from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, mean_sd, ratio_ci, welch
 from tavc_agents.experiments.files import atomic_path
-from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.provenance import PROVENANCE_FILE
 from tavc_agents.experiments.study import (
     Outcome,
     StudySettings,
@@ -47,7 +48,7 @@ from tavc_agents.experiments.study import (
     differing_cells,
     recorded_settings,
 )
-from tavc_agents.experiments.sweep import TagValue, TrialSpec
+from tavc_agents.experiments.sweep import TRIALS, TagValue, TrialSpec, saved_results
 from tavc_agents.studies.common import (
     Overrides,
     arena_overrides,
@@ -213,17 +214,24 @@ def run(settings: Settings) -> Outcome:
 def settings_from_provenance(meta: Mapping[str, Any], out: Path) -> Settings:
     """The settings that made the results in `out` (as its provenance records them), with the
     conditions whose trials are saved there: rerunning them loads every trial and redraws."""
-    recorded = meta["settings"]
+    recorded = meta.get("settings") if isinstance(meta, Mapping) else None
+    fields = ("preset", "trials", "convergence_h", "measured_h", "init", "temperature", "epsilon")
+    needed = (*fields, "seed")
+    if not isinstance(recorded, dict) or any(name not in recorded for name in needed):
+        missing = [n for n in needed if not isinstance(recorded, dict) or n not in recorded]
+        raise ValueError(
+            f"{out / PROVENANCE_FILE} records no settings {', '.join(missing)}: not the provenance "
+            "of a table1 run; allowed: a table1 output folder"
+        )
+    overrides = recorded.get("overrides", {})
+    if not isinstance(overrides, dict):
+        raise ValueError(
+            f"{out / PROVENANCE_FILE} records overrides = {overrides!r}; allowed: a JSON object"
+        )
     base = Settings(
-        preset=recorded["preset"],
-        trials=recorded["trials"],
-        convergence_h=recorded["convergence_h"],
-        measured_h=recorded["measured_h"],
-        init=recorded["init"],
-        temperature=recorded["temperature"],
-        epsilon=recorded["epsilon"],
+        **{name: recorded[name] for name in fields},
         seed=recorded["seed"],
-        set=tuple(f"{k}={json.dumps(v)}" for k, v in recorded.get("overrides", {}).items()),
+        set=tuple(f"{k}={json.dumps(v)}" for k, v in overrides.items()),
         out=out,
     )
     saved = [
@@ -234,6 +242,24 @@ def settings_from_provenance(meta: Mapping[str, Any], out: Path) -> Settings:
     if not saved:
         raise ValueError(f"{out}/trials holds no saved trials; allowed: a table1 output folder")
     return dataclasses.replace(base, conditions=",".join(saved))
+
+
+def resume_command(settings: Settings, folder: Path) -> str:
+    """The command that finishes the trials of `settings` (sized) in `folder`."""
+    s = settings
+    options = [
+        f"--preset {s.preset}",
+        f"--trials {s.trials}",
+        f"--convergence-h {s.convergence_h}",
+        f"--measured-h {s.measured_h}",
+        f"--conditions {s.conditions}",
+        f"--init {s.init}",
+        f"--temperature {s.temperature}",
+        f"--epsilon {s.epsilon}",
+        f"--seed {s.seed}",
+        *(f"--set {shlex.quote(entry)}" for entry in s.set),
+    ]
+    return f"tavc reproduce --resume {shlex.quote(str(folder))} {' '.join(options)}"
 
 
 FIGURES = ("figure2.png", "performance.png")
@@ -250,7 +276,15 @@ def draw_figure(folder: Path, figure: str, path: Path) -> None:
     assert meta is not None
     s = settings_from_provenance(meta, folder).sized()
     trial_specs = specs(s)
-    results = {t.key: TrialResult.load(folder / "trials" / f"{t.key}.json") for t in trial_specs}
+    # A redraw never computes: the trials are read, and any not saved are named, not run.
+    results = saved_results(trial_specs, TRIALS, folder / "trials")
+    missing = [t.key for t in trial_specs if t.key not in results]
+    if missing:
+        raise ValueError(
+            f"{folder} holds {len(results)} of the {len(trial_specs)} trials its provenance "
+            f"records ({len(missing)} missing, e.g. {missing[0]}); a redraw computes nothing: "
+            f"finish them with `{resume_command(s, folder)}`, then redraw"
+        )
     by: dict[str, list[TrialMeasures]] = {c: [] for c in s.chosen}
     for spec in trial_specs:
         by[str(spec.tags["condition"])].append(measure(results[spec.key]))

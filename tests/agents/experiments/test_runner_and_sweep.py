@@ -15,6 +15,7 @@ import pytest
 
 import tavc_env
 from tavc_agents.allocators.baselines import RandomAllocator
+from tavc_agents.experiments.folders import LOCK_FILE
 from tavc_agents.experiments.runner import TrialResult, env_arguments, run_trial
 from tavc_agents.experiments.sweep import TrialSpec, result_path, run_spec, run_sweep
 from tavc_agents.learners.tavc import TavcLearner, softmax_tavc
@@ -472,7 +473,10 @@ def test_sweep_runs_and_saves_every_trial(sweep_once) -> None:
     keys = [s.key for s in tiny_specs()]
     assert list(results) == keys
     assert done == [(k, False) for k in keys]
-    assert sorted(p.name for p in out.iterdir()) == sorted(f"{k}.json" for k in keys)
+    # each trial's file, and the lock the sweep held on the folder (experiments.folders)
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [LOCK_FILE, *(f"{k}.json" for k in keys)]
+    )
     for spec in tiny_specs():
         r = results[spec.key]
         assert r.label == spec.key and r.seed == spec.seed
