@@ -39,7 +39,7 @@ from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, mean_sd, ratio_ci, welch
 from tavc_agents.experiments.files import atomic_path
-from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.packs import is_saved, load_trial
 from tavc_agents.experiments.study import (
     Outcome,
     StudySettings,
@@ -229,7 +229,7 @@ def settings_from_provenance(meta: Mapping[str, Any], out: Path) -> Settings:
     saved = [
         c
         for c in CONDITION_ORDER
-        if (out / "trials" / f"{trial_key({'condition': c, 'seed': base.seed})}.json").exists()
+        if is_saved(out / "trials" / f"{trial_key({'condition': c, 'seed': base.seed})}.json")
     ]
     if not saved:
         raise ValueError(f"{out}/trials holds no saved trials; allowed: a table1 output folder")
@@ -250,7 +250,7 @@ def draw_figure(folder: Path, figure: str, path: Path) -> None:
     assert meta is not None
     s = settings_from_provenance(meta, folder).sized()
     trial_specs = specs(s)
-    results = {t.key: TrialResult.load(folder / "trials" / f"{t.key}.json") for t in trial_specs}
+    results = {t.key: load_trial(folder / "trials" / f"{t.key}.json") for t in trial_specs}
     by: dict[str, list[TrialMeasures]] = {c: [] for c in s.chosen}
     for spec in trial_specs:
         by[str(spec.tags["condition"])].append(measure(results[spec.key]))
