@@ -123,14 +123,21 @@ class _Index:
         return f"{self.path}, line {self.lines[key][0]} ({key})"
 
 
-_CACHE: dict[Path, tuple[tuple[int, int, int, int], _Index]] = {}
+_CACHE: dict[Path, tuple[tuple[tuple[int, ...], ...], _Index]] = {}
+
+
+def _stamp(path: Path) -> tuple[int, ...]:
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return ()
+    return (st.st_dev, st.st_ino, st.st_mtime_ns, st.st_size)
 
 
 def _index(path: Path) -> _Index:
-    """The pack at `path`, read and checked once per version of the file (a sweep looks up
-    thousands of trials in it)."""
-    st = path.stat()
-    stamp = (st.st_dev, st.st_ino, st.st_mtime_ns, st.st_size)
+    """The pack at `path`, read and checked once per version of it and of its manifest (a sweep
+    looks up thousands of trials in it)."""
+    stamp = (_stamp(path), _stamp(path.parent / MANIFEST))
     cached = _CACHE.get(path)
     if cached is not None and cached[0] == stamp:
         return cached[1]
