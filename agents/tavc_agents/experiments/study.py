@@ -29,6 +29,7 @@ import tyro
 
 from tavc_agents.experiments.folders import FolderError, check_out_folder, hold_folder
 from tavc_agents.experiments.limits import check_settings
+from tavc_agents.experiments.packs import pack_new
 from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TRIALS, JobKind, SaveError, TrialSpec
@@ -296,6 +297,9 @@ def run_study(
     print(outcome.text)
     for line in outcome.failures:
         print(line, file=sys.stderr)
+    if settings.update_reference:  # trials added to packed reference folders join their packs
+        for packed in pack_new(out):
+            print(packed.line())
     print(f"\nResults in {outcome.out_dir}/")
     reference = settings.reference_dir()
     if CHECKOUT is None and not reference.is_dir():

@@ -45,6 +45,7 @@ from typing import Any, Generic, TypeVar
 
 from tqdm import tqdm
 
+from tavc_agents.experiments import packs
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
 from tavc_agents.experiments.folders import forget_inherited, hold_folder
 from tavc_agents.experiments.registry import REGISTRY, Allocator, make_allocator
@@ -210,6 +211,10 @@ class JobKind(Generic[J, R]):
     )
     check: Callable[[J], None] = field(default=lambda job: None)
     """Raise a ValueError for a job that cannot run (called for every job before any runs)."""
+    parse: Callable[[dict[str, Any]], tuple[R, dict[str, Any] | None]] | None = None
+    """The result and its stored record from a saved record's data (what `load` reads from a
+    file), for results packed into the folder's `pack.jsonl` (`tavc_agents.experiments.packs`);
+    None: this kind's results are never packed."""
 
 
 def run_jobs(
@@ -336,7 +341,7 @@ def _saved(job: J, kind: JobKind[J, R], out: Path) -> tuple[R] | None:
     key = kind.key(job)
     path = result_path(out, key)
     if not path.exists():
-        return None
+        return _packed(job, kind, out)
     try:
         stored, record = kind.load(path)
     except CorruptFileError as error:
@@ -361,6 +366,29 @@ def saved_results(jobs: Sequence[J], kind: JobKind[J, R], out_dir: str | Path) -
         if stored is not None:
             found[kind.key(job)] = stored[0]
     return found
+
+
+def _packed(job: J, kind: JobKind[J, R], out: Path) -> tuple[R] | None:
+    """`_saved` for a job without its own file: its line in the folder's pack, if it has one
+    (`tavc_agents.experiments.packs`; a damaged line is named and the job runs again)."""
+    key = kind.key(job)
+    if kind.parse is None:
+        return None
+    try:
+        found = packs.find(out, key)
+        if found is None:
+            return None
+        stored, record = packs.parsed(found, kind.parse, kind.unit)
+    except CorruptFileError as error:
+        print(f"{error}; running {kind.unit} {key!r} again", file=sys.stderr)
+        return None
+    if not kind.same(record, kind.record(job)):
+        raise ValueError(
+            f"{found[1]} holds {kind.unit} {key!r} run with different settings "
+            f"({record or 'unknown'}); allowed: the same settings to resume, or another "
+            "output folder for new ones"
+        )
+    return (stored,)
 
 
 @dataclass(frozen=True)
@@ -648,6 +676,7 @@ TRIALS: JobKind[TrialSpec, TrialResult] = JobKind(
     record=spec_record,
     save=_save_trial,
     load=_load_trial,
+    parse=packs.trial_from_data,
     unit="trial",
     same=_same_trial,
 )
@@ -688,7 +717,15 @@ def json_jobs(
         data: dict[str, Any] = json.loads(json.dumps(fields, default=repr))
         return data
 
-    return JobKind(run=run, key=key, record=record, save=_save_json, load=_load_json, unit=unit)
+    return JobKind(
+        run=run,
+        key=key,
+        record=record,
+        save=_save_json,
+        load=_load_json,
+        parse=packs.json_from_data,
+        unit=unit,
+    )
 
 
 def _run_on_ray(

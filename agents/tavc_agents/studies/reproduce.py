@@ -3,7 +3,8 @@
 Every trial a sweep saves carries the `TrialSpec` it was run from. This re-runs those specs with
 the code checked out now and compares everything the trial recorded (timeline, deliveries, Q
 snapshots, counters; not the wall-clock time). Use it to check that a change of code or machine
-leaves saved results reproducible.
+leaves saved results reproducible. Trials packed into their folder's `pack.jsonl`
+(`tavc_agents.experiments.packs`) are found and named by the path their own file would have.
 
     python benchmarks/reproduce_trials.py benchmarks/results/table1_dahl2004_scaled/trials/*.json
     python benchmarks/reproduce_trials.py --sample 4 --seed 1 'benchmarks/results/*/trials/*.json'
@@ -11,7 +12,6 @@ leaves saved results reproducible.
 
 from __future__ import annotations
 
-import glob
 import json
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -22,7 +22,7 @@ from typing import Annotated, Any
 import numpy as np
 import tyro
 
-from tavc_agents.experiments.files import read_record
+from tavc_agents.experiments.packs import read_saved, saved_paths
 from tavc_agents.experiments.runner import Event, TrialResult
 from tavc_agents.experiments.study import Outcome
 from tavc_agents.experiments.sweep import TrialSpec, run_spec
@@ -35,7 +35,7 @@ class Settings:
     """Which saved trials to re-run."""
 
     patterns: Annotated[tuple[str, ...], tyro.conf.Positional]
-    """trial JSON files or glob patterns"""
+    """trial JSON files or glob patterns (packed trials match as their own files would)"""
     sample: int | None = None
     """check only this many, drawn at random"""
     seed: int = 0
@@ -55,7 +55,7 @@ class Settings:
         """The matching trial files (a random sample of them, with `sample`). Files that are not
         whole trials are left out: manifests and the compact per-trial records of studies such
         as the liveness check and the regime map (which keep measures, not trajectories)."""
-        matched = {p for pattern in self.patterns for p in glob.glob(pattern)}
+        matched = {p for pattern in self.patterns for p in saved_paths(pattern)}
         paths = sorted(p for p in matched if p.endswith(".json") and not _compact_record(p))
         if not paths:
             raise ValueError(
@@ -70,6 +70,8 @@ class Settings:
 
 def _compact_record(path: str) -> bool:
     """Whether `path` holds a study's compact record ({"record": ..., "result": ...})."""
+    if not Path(path).exists():  # packed
+        return list(read_saved(path))[:1] == ["record"]
     with open(path, "rb") as f:
         return f.read(11) == b'{"record": '
 
@@ -92,7 +94,7 @@ def spec_of(stored: TrialResult, path: str) -> TrialSpec:
 
 def check(path: str) -> tuple[str, bool, int]:
     """(path, whether a fresh run equals the saved one, escapes in the fresh run)."""
-    stored_data = read_record(path)
+    stored_data = read_saved(path)
     stored = TrialResult.from_dict(stored_data)
     fresh = run_spec(spec_of(stored, path))
     # fields added to trial records after this one was saved are not compared

@@ -40,6 +40,7 @@ from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, mean_sd, ratio_ci, welch
 from tavc_agents.experiments.files import atomic_path
+from tavc_agents.experiments.packs import is_saved
 from tavc_agents.experiments.provenance import PROVENANCE_FILE
 from tavc_agents.experiments.study import (
     Outcome,
@@ -237,7 +238,7 @@ def settings_from_provenance(meta: Mapping[str, Any], out: Path) -> Settings:
     saved = [
         c
         for c in CONDITION_ORDER
-        if (out / "trials" / f"{trial_key({'condition': c, 'seed': base.seed})}.json").exists()
+        if is_saved(out / "trials" / f"{trial_key({'condition': c, 'seed': base.seed})}.json")
     ]
     if not saved:
         raise ValueError(f"{out}/trials holds no saved trials; allowed: a table1 output folder")
