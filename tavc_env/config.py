@@ -370,22 +370,33 @@ class ArenaConfig:
             f"at most {_most_robots(r, w, h)} robots of radius {r} m in a {w} x {h} m arena "
             "(robots cannot fit)",
         )
+        # the room at a station depends on where every station is and on these fields
+        room_fields = {
+            "station_bays": self.station_bays,
+            "queue_spacing_m": self.queue_spacing_m,
+            "queue_offset_m": self.queue_offset_m,
+            "robot_radius": r,
+            "width": w,
+            "height": h,
+        }
         for k, (name, _, _) in enumerate(self.stations()):
             fit = len(self.bays(k))
-            require(
+            require_together(
                 fit == self.station_bays,
-                f"{name} bays",
-                f"room for {fit} bays",
+                {f"{name} bays": f"room for {fit} bays", **room_fields},
                 f"room for all {self.station_bays} bays, {self.queue_spacing_m:g} m apart along "
                 "the queue direction inside the arena and nearer their own station than any other "
                 "(or: fewer bays, a smaller queue_spacing_m, circuits further apart)",
             )
         room = [len(self.waiting_slots(k, self.n_robots - 1)) for k in range(len(self.stations()))]
         for (name, _, _), held in zip(self.stations(), room):
-            require(
+            require_together(
                 held >= self.n_robots - 1,
-                f"{name} waiting line",
-                f"room for {held} robots",
+                {
+                    f"{name} waiting line": f"room for {held} robots",
+                    "len(robots)": n,
+                    **room_fields,
+                },
                 f"room for all {self.n_robots - 1} robots that may wait there; the lines of this "
                 f"arena hold a team of at most {min(room) + 1} robots (or: a larger arena, "
                 "circuits further apart or another queue_direction)",

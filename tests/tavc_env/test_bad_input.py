@@ -251,8 +251,11 @@ BAD_CONFIGS: list[tuple[dict[str, Any], str]] = [
         r"circuits\[1\]\.sink \(distance to circuits\[0\]\.sink\), robot_radius = 0\.3, 0\.22 is inv",
     ),
     ({"circuits": ()}, r"circuits = \(\) is invalid; allowed: at least one Circuit"),
-    ({"speeds": [0.25] * 100}, r"robots, robot_radius, width, height = '100 robots', 0\.22, 12\.0, 8\.0 is invalid; "
-        r"allowed: .*cannot fit"),
+    (
+        {"speeds": [0.25] * 100},
+        r"robots, robot_radius, width, height = '100 robots', 0\.22, 12\.0, 8\.0 is invalid; "
+        r"allowed: .*cannot fit",
+    ),
     (
         {"breakdowns": (tavc_env.Breakdown(robot=6, at_s=10.0),)},
         r"breakdowns\[0\]\.robot, len\(robots\) = 6, 6 is invalid; allowed: a robot index in "
@@ -292,12 +295,18 @@ BAD_CONFIGS: list[tuple[dict[str, Any], str]] = [
     ({"speed_noise": 0.5}, r"speed_noise = 0\.5 is invalid; allowed: .*\[0, 0\.3\]"),
     ({"speed_noise": -0.1}, r"speed_noise = -0\.1 is invalid"),
     ({"robot_radius": 0.0}, r"robot_radius = 0\.0 is invalid"),
-    ({"robot_radius": 3.0}, r"robot_radius, width, height = 3\.0, 12\.0, 8\.0 is invalid; allowed: .*a quarter"),
+    (
+        {"robot_radius": 3.0},
+        r"robot_radius, width, height = 3\.0, 12\.0, 8\.0 is invalid; allowed: .*a quarter",
+    ),
     ({"width": -12.0}, r"width = -12\.0 is invalid"),
     ({"height": 0}, r"height = 0 is invalid"),
     ({"source_service_s": -1.0}, r"source_service_s = -1\.0 is invalid; allowed: .*>= 0"),
     ({"sink_service_s": INF}, r"sink_service_s = inf is invalid"),
-    ({"queue_spacing_m": 0.2}, r"queue_spacing_m, robot_radius = 0\.2, 0\.22 is invalid; allowed: .*the robot diam"),
+    (
+        {"queue_spacing_m": 0.2},
+        r"queue_spacing_m, robot_radius = 0\.2, 0\.22 is invalid; allowed: .*the robot diam",
+    ),
     ({"queue_offset_m": 0.1}, r"queue_offset_m, robot_radius = 0\.1, 0\.22 is invalid"),
     ({"join_radius_m": 0.0}, r"join_radius_m = 0\.0 is invalid"),
     ({"dock_tolerance_m": -0.1}, r"dock_tolerance_m = -0\.1 is invalid"),
