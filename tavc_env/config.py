@@ -53,6 +53,10 @@ MIN_SENSING_OVER_RADIUS = 2.5
 # numbers fit a 64-bit integer with room to spare.
 MAX_ARENA_SIDE_M = 1e6
 MAX_BAYS = 8  # bays per station: a loading bank, not a warehouse wall
+# The shortest physics step: `max_time_s` (dt x 1e-6 / float epsilon) is then 125 h, beyond any
+# run of the studies; with a shorter step the env's own default limits (a 600 s step cap) could not
+# be met, and the refusal would name them instead of dt.
+MIN_DT_S = 1e-4
 MAX_SCALED_ROBOTS = 400  # scaled_config: the largest team it lays out in a few seconds (128 x 3)
 # Circuits per arena: the validation compares every pair of stations (2000 stations: 4 million
 # pairs, 32 MB), and `lane_circuits(10**400)` must be refused before it builds a list of values.
@@ -63,10 +67,14 @@ PAIR = "a pair of finite numbers (x, y) in metres"
 def _items(name: str, value: object, kind: str) -> tuple[Any, ...]:
     """`value` as a tuple, refusing what is not a sequence of items (a number, None, a string, a
     mapping) with a ValueError instead of the TypeError `tuple()` would raise."""
-    ok = isinstance(value, Iterable) and not isinstance(value, (str, bytes, Mapping))
+    ok = isinstance(value, Iterable) and not isinstance(value, (str, bytes, bytearray, Mapping))
     require(ok, name, value, f"a sequence of {kind}")
     assert isinstance(value, Iterable)
-    return tuple(value)
+    try:
+        return tuple(value)
+    except TypeError:  # iterable in name only: a 0-d numpy array
+        require(False, name, value, f"a sequence of {kind}")
+        raise
 
 
 def _unit(name: str, value: object) -> Point:
@@ -176,7 +184,11 @@ _NUMBER_FIELDS: Mapping[str, tuple[str, Callable[[float], bool]]] = {
     ),
     "source_service_s": ("a finite time >= 0 s", _non_negative),
     "sink_service_s": ("a finite time >= 0 s", _non_negative),
-    "dt": ("a physics step in (0, 0.5] s", lambda v: 0 < v <= 0.5),
+    "dt": (
+        f"a physics step in (0, 0.5] s, at least {MIN_DT_S:g} s (a float must resolve "
+        "125 h of steps to a millionth of a step)",
+        lambda v: MIN_DT_S <= v <= 0.5,
+    ),
     "speed_noise": ("a relative standard deviation in [0, 0.3]", lambda v: 0 <= v <= 0.3),
     "clearance_governor_m": ("0 (off) or a finite clearance > 0 m", _non_negative),
 }
@@ -372,6 +384,7 @@ class ArenaConfig:
         )
         # the room at a station depends on where every station is and on these fields
         room_fields = {
+            "circuits": f"{m} circuits",  # where every other station stands
             "station_bays": self.station_bays,
             "queue_spacing_m": self.queue_spacing_m,
             "queue_offset_m": self.queue_offset_m,

@@ -151,6 +151,34 @@ def test_an_integer_beyond_the_floats_is_refused_in_one_line(bad: int) -> None:
     assert "\n" not in str(caught.value) and len(str(caught.value)) < 1200
 
 
+@pytest.mark.parametrize("dt", [5e-30, 1e-300, 9.9e-5])
+def test_a_physics_step_too_short_for_a_float_to_count_is_refused_naming_dt(dt: float) -> None:
+    """The fuzz suite's long profile found dt = 5e-30 accepted, then the env refusing its own
+    default step cap (a consequence, in another field's name)."""
+    with pytest.raises(ValueError, match=rf"^dt = {dt!r} is invalid; allowed: .*at least 0\.0001"):
+        tavc_env.make_config("dahl2004", dt=dt)
+    config = tavc_env.make_config("dahl2004", dt=1e-4)
+    run_a_little(config, steps=1)
+
+
+def test_a_zero_dimensional_array_is_no_sequence_of_speeds() -> None:
+    """Found by the fuzz suite: `speeds=np.array(1.0)` was a bare TypeError."""
+    for bad in (np.array(1.0), np.array(0.3)):
+        with pytest.raises(ValueError, match=r"^speeds = array\(.*\) is invalid; allowed: "):
+            tavc_env.scaled_config(2, speeds=bad)
+    assert len(tavc_env.robots_from_speeds(np.array([0.3, 0.2]))) == 2
+
+
+def test_a_station_blocked_by_another_circuit_names_the_circuits() -> None:
+    """Found by the fuzz suite: a sink moved next to another circuit's leaves that circuit's line
+    no room; the refusal names the station without room and the circuits whose places decide."""
+    moved = Circuit((10.5, 6.5), (3.0, 1.0), 2000.0, (-1.0, 0.0))
+    with pytest.raises(
+        ValueError, match=r"^circuits\[\d\]\.\w+ waiting line, len\(robots\), circuits, "
+    ):
+        tavc_env.make_config("dahl2004", circuits=(tavc_env.preset("dahl2004").circuits[0], moved))
+
+
 @pytest.mark.parametrize("bad", [True, np.True_, 2.0, Fraction(2), "2", None, 0, 9])
 def test_station_bays_is_an_integer(bad: Any) -> None:
     with pytest.raises(ValueError, match=r"^station_bays = .* is invalid; allowed: an integer"):
