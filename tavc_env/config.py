@@ -10,13 +10,20 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from tavc_env._validation import is_integer, is_number, require
+from tavc_env._validation import (
+    integer,
+    is_integer,
+    point,
+    real,
+    require,
+    require_together,
+)
 from tavc_env.layout import WALL_CLEARANCE_M, stack_rows, waiting_rows
 
 Point = tuple[float, float]
@@ -46,28 +53,43 @@ MIN_SENSING_OVER_RADIUS = 2.5
 # numbers fit a 64-bit integer with room to spare.
 MAX_ARENA_SIDE_M = 1e6
 MAX_BAYS = 8  # bays per station: a loading bank, not a warehouse wall
+# The shortest physics step: `max_time_s` (dt x 1e-6 / float epsilon) is then 125 h, beyond any
+# run of the studies; with a shorter step the env's own default limits (a 600 s step cap) could not
+# be met, and the refusal would name them instead of dt.
+MIN_DT_S = 1e-4
 MAX_SCALED_ROBOTS = 400  # scaled_config: the largest team it lays out in a few seconds (128 x 3)
+# Circuits per arena: the validation compares every pair of stations (2000 stations: 4 million
+# pairs, 32 MB), and `lane_circuits(10**400)` must be refused before it builds a list of values.
+MAX_CIRCUITS = 1000
+PAIR = "a pair of finite numbers (x, y) in metres"
 
 
 def _items(name: str, value: object, kind: str) -> tuple[Any, ...]:
     """`value` as a tuple, refusing what is not a sequence of items (a number, None, a string, a
     mapping) with a ValueError instead of the TypeError `tuple()` would raise."""
-    ok = isinstance(value, Iterable) and not isinstance(value, (str, bytes, Mapping))
+    ok = isinstance(value, Iterable) and not isinstance(value, (str, bytes, bytearray, Mapping))
     require(ok, name, value, f"a sequence of {kind}")
     assert isinstance(value, Iterable)
-    return tuple(value)
+    try:
+        return tuple(value)
+    except TypeError:  # iterable in name only: a 0-d numpy array
+        require(False, name, value, f"a sequence of {kind}")
+        raise
 
 
-def _point(name: str, value: object) -> Point:
-    ok = (
-        isinstance(value, Sequence)
-        and not isinstance(value, str)
-        and len(value) == 2
-        and all(is_number(v) for v in value)
-    )
-    require(ok, name, value, "a pair of finite numbers (x, y) in metres")
-    assert isinstance(value, Sequence)
-    return (float(value[0]), float(value[1]))
+def _unit(name: str, value: object) -> Point:
+    """`value` (a direction) scaled to length 1. A vector whose length a float does not hold
+    (1e308 in both coordinates overflows it, 5e-324 underflows it to the smallest float) is
+    first divided by its largest coordinate; any other is divided by its length directly, as it
+    always was (the direction of a saved arena stays bit for bit what it was)."""
+    d = point(value, name, PAIR)
+    norm = math.hypot(*d)
+    if not (1e-150 < norm < 1e150):
+        scale = max(abs(d[0]), abs(d[1]))
+        require(scale > 0, name, value, "a non-zero vector")
+        d = (d[0] / scale, d[1] / scale)
+        norm = math.hypot(*d)
+    return (d[0] / norm, d[1] / norm)
 
 
 @dataclass(frozen=True)
@@ -84,18 +106,12 @@ class Circuit:
     queue_direction: Point = (1.0, 0.0)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "source", _point("circuit.source", self.source))
-        object.__setattr__(self, "sink", _point("circuit.sink", self.sink))
-        d = _point("circuit.queue_direction", self.queue_direction)
-        norm = math.hypot(*d)
-        require(norm > 0, "circuit.queue_direction", self.queue_direction, "a non-zero vector")
-        object.__setattr__(self, "queue_direction", (d[0] / norm, d[1] / norm))
-        require(
-            is_number(self.value) and self.value > 0,
-            "circuit.value",
-            self.value,
-            "a finite number > 0",
-        )
+        object.__setattr__(self, "source", point(self.source, "circuit.source", PAIR))
+        object.__setattr__(self, "sink", point(self.sink, "circuit.sink", PAIR))
+        direction = _unit("circuit.queue_direction", self.queue_direction)
+        object.__setattr__(self, "queue_direction", direction)
+        value = real(self.value, "circuit.value", "a finite number > 0", lambda v: v > 0)
+        object.__setattr__(self, "value", value)
 
 
 @dataclass(frozen=True)
@@ -106,12 +122,13 @@ class Robot:
     speed_class: str = ""
 
     def __post_init__(self) -> None:
-        require(
-            is_number(self.speed) and 0 < self.speed <= MAX_SPEED_M_S,
-            "robot.speed",
-            self.speed,
-            f"a finite speed in (0, {MAX_SPEED_M_S:g}] m/s",
-        )
+        allowed = f"a finite speed in (0, {MAX_SPEED_M_S:g}] m/s"
+        speed = real(self.speed, "robot.speed", allowed, lambda v: 0 < v <= MAX_SPEED_M_S)
+        object.__setattr__(self, "speed", speed)
+        # a label the reports group robots by: it must be hashable and print as text
+        label = self.speed_class
+        require(isinstance(label, str), "robot.speed_class", label, "a string (a label)")
+        object.__setattr__(self, "speed_class", str(label))
 
 
 @dataclass(frozen=True)
@@ -124,22 +141,57 @@ class Breakdown:
     repair_after_s: float | None = None
 
     def __post_init__(self) -> None:
-        require(
-            is_integer(self.robot) and self.robot >= 0,
-            "breakdown.robot",
-            self.robot,
-            "a robot index >= 0",
-        )
-        require(
-            is_number(self.at_s) and self.at_s >= 0, "breakdown.at_s", self.at_s, "a time >= 0 s"
-        )
-        require(
-            self.repair_after_s is None
-            or (is_number(self.repair_after_s) and self.repair_after_s > 0),
-            "breakdown.repair_after_s",
-            self.repair_after_s,
-            "None or a duration > 0 s",
-        )
+        robot = integer(self.robot, "breakdown.robot", "a robot index >= 0", lambda i: i >= 0)
+        object.__setattr__(self, "robot", robot)
+        at_s = real(self.at_s, "breakdown.at_s", "a time >= 0 s", lambda v: v >= 0)
+        object.__setattr__(self, "at_s", at_s)
+        if self.repair_after_s is not None:
+            after = real(
+                self.repair_after_s,
+                "breakdown.repair_after_s",
+                "None or a duration > 0 s",
+                lambda v: v > 0,
+            )
+            object.__setattr__(self, "repair_after_s", after)
+
+
+def _positive(v: float) -> bool:
+    return v > 0
+
+
+def _non_negative(v: float) -> bool:
+    return v >= 0
+
+
+_SIDE = f"a side of at most {MAX_ARENA_SIDE_M:g} m and more than 0 (positions are floats)"
+# Each number field of ArenaConfig: what is allowed, and the test, on its own (rules relating
+# fields come after all of these, in ArenaConfig._validate).
+_NUMBER_FIELDS: Mapping[str, tuple[str, Callable[[float], bool]]] = {
+    "width": (_SIDE, lambda v: 0 < v <= MAX_ARENA_SIDE_M),
+    "height": (_SIDE, lambda v: 0 < v <= MAX_ARENA_SIDE_M),
+    **dict.fromkeys(
+        (
+            "robot_radius",
+            "queue_offset_m",
+            "queue_spacing_m",
+            "join_radius_m",
+            "dock_tolerance_m",
+            "max_turn_rate",
+            "sensing_range_m",
+            "service_reference_speed",
+        ),
+        ("a finite number > 0", _positive),
+    ),
+    "source_service_s": ("a finite time >= 0 s", _non_negative),
+    "sink_service_s": ("a finite time >= 0 s", _non_negative),
+    "dt": (
+        f"a physics step in (0, 0.5] s, at least {MIN_DT_S:g} s (a float must resolve "
+        "125 h of steps to a millionth of a step)",
+        lambda v: MIN_DT_S <= v <= 0.5,
+    ),
+    "speed_noise": ("a relative standard deviation in [0, 0.3]", lambda v: 0 <= v <= 0.3),
+    "clearance_governor_m": ("0 (off) or a finite clearance > 0 m", _non_negative),
+}
 
 
 @dataclass(frozen=True)
@@ -207,6 +259,21 @@ class ArenaConfig:
         object.__setattr__(
             self, "start_circuits", tuple(int(c) if is_integer(c) else c for c in start)
         )
+        # every number on its own first (and as a plain int or float), then the rules relating
+        # fields (in _validate), so that a consequence is never blamed on one field alone
+        for name, (allowed, ok) in _NUMBER_FIELDS.items():
+            object.__setattr__(self, name, real(getattr(self, name), name, allowed, ok))
+        bays = integer(
+            self.station_bays,
+            "station_bays",
+            f"an integer in [1, {MAX_BAYS}]",
+            lambda b: 1 <= b <= MAX_BAYS,
+        )
+        object.__setattr__(self, "station_bays", bays)
+        for name in ("service_scales_with_speed", "overtaking"):
+            value = getattr(self, name)
+            require(isinstance(value, bool), name, value, "True or False")
+        self._validate_items()
         # the stations, once (validation and layout look them up per station; not a field)
         stations = []
         for i, c in enumerate(self.circuits):
@@ -232,78 +299,55 @@ class ArenaConfig:
         (time is `ticks * dt`; beyond this the tolerances of the event checks no longer hold)."""
         return self.dt * 1e-6 / sys.float_info.epsilon
 
-    def _validate(self) -> None:
-        positive = {
-            "width": self.width,
-            "height": self.height,
-            "robot_radius": self.robot_radius,
-            "queue_offset_m": self.queue_offset_m,
-            "queue_spacing_m": self.queue_spacing_m,
-            "join_radius_m": self.join_radius_m,
-            "dock_tolerance_m": self.dock_tolerance_m,
-            "max_turn_rate": self.max_turn_rate,
-            "sensing_range_m": self.sensing_range_m,
-            "service_reference_speed": self.service_reference_speed,
-        }
-        for name, value in positive.items():
-            require(is_number(value) and value > 0, name, value, "a finite number > 0")
-        for name in ("width", "height"):
-            value = getattr(self, name)
-            require(
-                value <= MAX_ARENA_SIDE_M,
-                name,
-                value,
-                f"a side of at most {MAX_ARENA_SIDE_M:g} m (positions are floats)",
-            )
-        for name in ("service_scales_with_speed", "overtaking"):
-            value = getattr(self, name)
-            require(isinstance(value, bool), name, value, "True or False")
-        for name in ("source_service_s", "sink_service_s"):
-            value = getattr(self, name)
-            require(is_number(value) and value >= 0, name, value, "a finite time >= 0 s")
+    def _validate_items(self) -> None:
+        """The circuits, robots, breakdowns and start circuits, each on its own."""
         require(
-            is_number(self.dt) and 0 < self.dt <= 0.5,
-            "dt",
-            self.dt,
-            "a physics step in (0, 0.5] s",
+            1 <= len(self.circuits) <= MAX_CIRCUITS,
+            "circuits",
+            self.circuits,
+            f"at least one Circuit and at most {MAX_CIRCUITS}",
         )
-        require(
-            is_number(self.speed_noise) and 0 <= self.speed_noise <= 0.3,
-            "speed_noise",
-            self.speed_noise,
-            "a relative standard deviation in [0, 0.3]",
-        )
-        require(
-            self.robot_radius * 4 <= min(self.width, self.height),
-            "robot_radius",
-            self.robot_radius,
-            f"at most a quarter of the arena's smaller side ({min(self.width, self.height) / 4} m)",
-        )
-        require(
-            self.queue_spacing_m >= 2 * self.robot_radius,
-            "queue_spacing_m",
-            self.queue_spacing_m,
-            f">= the robot diameter {2 * self.robot_radius} m",
-        )
-        require(
-            self.queue_offset_m >= 2 * self.robot_radius,
-            "queue_offset_m",
-            self.queue_offset_m,
-            f">= the robot diameter {2 * self.robot_radius} m",
-        )
-        require(len(self.circuits) >= 1, "circuits", self.circuits, "at least one Circuit")
         require(len(self.robots) >= 1, "robots", self.robots, "at least one Robot")
         for i, c in enumerate(self.circuits):
             require(isinstance(c, Circuit), f"circuits[{i}]", c, "a tavc_env.Circuit")
         for i, r in enumerate(self.robots):
             require(isinstance(r, Robot), f"robots[{i}]", r, "a tavc_env.Robot")
+        for i, event in enumerate(self.breakdowns):
+            require(isinstance(event, Breakdown), f"breakdowns[{i}]", event, "a tavc_env.Breakdown")
+        require(
+            all(is_integer(c) and c >= 0 for c in self.start_circuits),
+            "start_circuits",
+            self.start_circuits,
+            "empty (an even spread) or circuit indices (integers >= 0), one per robot",
+        )
+
+    def _validate(self) -> None:
+        """The rules relating fields; each message names every field it relates."""
+        r, w, h = self.robot_radius, self.width, self.height
+        require_together(
+            r * 4 <= min(w, h),
+            {"robot_radius": r, "width": w, "height": h},
+            f"robot_radius at most a quarter of the arena's smaller side (min(width, height) / 4 "
+            f"= {min(w, h) / 4} m)",
+        )
+        for name in ("queue_spacing_m", "queue_offset_m"):
+            require_together(
+                getattr(self, name) >= 2 * r,
+                {name: getattr(self, name), "robot_radius": r},
+                f"{name} >= the robot diameter 2 x robot_radius = {2 * r} m",
+            )
         self._validate_envelope()
         margin = self.robot_radius + WALL_CLEARANCE_M
         inside = f"x in [{margin}, {self.width - margin}], y in [{margin}, {self.height - margin}]"
         stations = [(name, p) for name, p, _ in self.stations()]
         for name, p in stations:
             ok = margin <= p[0] <= self.width - margin and margin <= p[1] <= self.height - margin
-            require(ok, name, p, f"a point inside the arena: {inside}")
+            require_together(
+                ok,
+                {name: p, "width": w, "height": h, "robot_radius": r},
+                f"a point inside the arena, robot_radius + {WALL_CLEARANCE_M} m off its walls: "
+                f"{inside}",
+            )
         # Two docks closer than two robot diameters would make one robot's service block the other
         # station, so the circuits would not be separate task classes.
         min_gap = 4 * self.robot_radius
@@ -314,60 +358,58 @@ class ArenaConfig:
         for a, b in zip(*np.nonzero(np.triu(near < min_gap * (1 + 1e-6) + 1e-9, 1))):
             (na, pa), (nb, pb) = stations[int(a)], stations[int(b)]
             gap = math.dist(pa, pb)
-            require(
+            require_together(
                 gap >= min_gap,
-                f"{nb} (distance to {na})",
-                round(gap, 3),
-                f"stations at least {min_gap} m apart (overlapping circuits)",
+                {f"{nb} (distance to {na})": round(gap, 3), "robot_radius": r},
+                f"stations at least 4 x robot_radius = {min_gap} m apart (overlapping circuits)",
             )
+        n, m = self.n_robots, self.n_circuits
         for i, event in enumerate(self.breakdowns):
-            require(isinstance(event, Breakdown), f"breakdowns[{i}]", event, "a tavc_env.Breakdown")
-            require(
-                event.robot < self.n_robots,
-                f"breakdowns[{i}].robot",
-                event.robot,
-                f"a robot index in [0, {self.n_robots - 1}]",
+            require_together(
+                event.robot < n,
+                {f"breakdowns[{i}].robot": event.robot, "len(robots)": n},
+                f"a robot index in [0, len(robots) - 1] = [0, {n - 1}]",
             )
         if self.start_circuits:
-            m = self.n_circuits
-            require(
-                len(self.start_circuits) == self.n_robots
-                and all(is_integer(c) and 0 <= c < m for c in self.start_circuits),
-                "start_circuits",
-                self.start_circuits,
-                f"empty (an even spread) or {self.n_robots} circuit indices in [0, {m - 1}], "
-                "one per robot",
+            require_together(
+                len(self.start_circuits) == n and all(c < m for c in self.start_circuits),
+                {"start_circuits": self.start_circuits, "len(robots)": n, "len(circuits)": m},
+                f"empty (an even spread) or {n} circuit indices in [0, {m - 1}], one per robot",
             )
-        require(
-            _robots_fit(self.n_robots, self.robot_radius, self.width, self.height),
-            "robots",
-            f"{self.n_robots} robots",
-            f"at most {_most_robots(self.robot_radius, self.width, self.height)} robots of radius "
-            f"{self.robot_radius} m in a {self.width} x {self.height} m arena (robots cannot fit)",
+        require_together(
+            _robots_fit(n, r, w, h),
+            {"robots": f"{n} robots", "robot_radius": r, "width": w, "height": h},
+            f"at most {_most_robots(r, w, h)} robots of radius {r} m in a {w} x {h} m arena "
+            "(robots cannot fit)",
         )
-
-        require(
-            is_integer(self.station_bays) and 1 <= self.station_bays <= MAX_BAYS,
-            "station_bays",
-            self.station_bays,
-            f"an integer in [1, {MAX_BAYS}]",
-        )
+        # the room at a station depends on where every station is and on these fields
+        room_fields = {
+            "circuits": f"{m} circuits",  # where every other station stands
+            "station_bays": self.station_bays,
+            "queue_spacing_m": self.queue_spacing_m,
+            "queue_offset_m": self.queue_offset_m,
+            "robot_radius": r,
+            "width": w,
+            "height": h,
+        }
         for k, (name, _, _) in enumerate(self.stations()):
             fit = len(self.bays(k))
-            require(
+            require_together(
                 fit == self.station_bays,
-                f"{name} bays",
-                f"room for {fit} bays",
+                {f"{name} bays": f"room for {fit} bays", **room_fields},
                 f"room for all {self.station_bays} bays, {self.queue_spacing_m:g} m apart along "
                 "the queue direction inside the arena and nearer their own station than any other "
                 "(or: fewer bays, a smaller queue_spacing_m, circuits further apart)",
             )
         room = [len(self.waiting_slots(k, self.n_robots - 1)) for k in range(len(self.stations()))]
         for (name, _, _), held in zip(self.stations(), room):
-            require(
+            require_together(
                 held >= self.n_robots - 1,
-                f"{name} waiting line",
-                f"room for {held} robots",
+                {
+                    f"{name} waiting line": f"room for {held} robots",
+                    "len(robots)": n,
+                    **room_fields,
+                },
                 f"room for all {self.n_robots - 1} robots that may wait there; the lines of this "
                 f"arena hold a team of at most {min(room) + 1} robots (or: a larger arena, "
                 "circuits further apart or another queue_direction)",
@@ -377,31 +419,33 @@ class ArenaConfig:
         """The physics envelope: steps short enough that robots do not interpenetrate, and a
         sensing range beyond contact (see MAX_STEP_OVER_RADIUS and MIN_SENSING_OVER_RADIUS)."""
         r = self.robot_radius
-        fastest = max(robot.speed for robot in self.robots)
+        top = max(range(self.n_robots), key=lambda i: self.robots[i].speed)
+        fastest = self.robots[top].speed
         longest = MAX_STEP_OVER_RADIUS * r / fastest
-        require(
+        require_together(
             fastest * self.dt <= MAX_STEP_OVER_RADIUS * r * (1 + 1e-9),
-            "dt",
-            self.dt,
+            {"dt": self.dt, "robot_radius": r, f"robots[{top}].speed": fastest},
             f"a physics step of at most {MAX_STEP_OVER_RADIUS:g} x robot_radius / the top speed "
             f"= {longest:.4g} s here (radius {r:g} m, top speed {fastest:g} m/s): a robot must move "
             f"less than {MAX_STEP_OVER_RADIUS:g} radii per step or robots interpenetrate; use a "
             "smaller dt, slower robots or a larger radius",
         )
         least = MIN_SENSING_OVER_RADIUS * r
-        require(
+        require_together(
             self.sensing_range_m >= least * (1 - 1e-9),
-            "sensing_range_m",
-            self.sensing_range_m,
+            {"sensing_range_m": self.sensing_range_m, "robot_radius": r},
             f"a range of at least {MIN_SENSING_OVER_RADIUS:g} x robot_radius = {least:.4g} m "
             "(robots must sense each other before they touch at 2 x robot_radius)",
         )
         reach = self.sensing_range_m - 2 * r
         governor = self.clearance_governor_m
-        require(
-            is_number(governor) and 0 <= governor <= reach * (1 + 1e-9),
-            "clearance_governor_m",
-            governor,
+        require_together(
+            governor <= reach * (1 + 1e-9),
+            {
+                "clearance_governor_m": governor,
+                "sensing_range_m": self.sensing_range_m,
+                "robot_radius": r,
+            },
             f"0 (off) or a clearance of at most sensing_range_m - 2 x robot_radius = {reach:.4g} m "
             "(a robot can only slow for robots it senses)",
         )
@@ -455,7 +499,14 @@ class ArenaConfig:
 
     def replace(self, **changes: Any) -> ArenaConfig:
         """A copy with fields changed (validated again)."""
+        _refuse_unknown(changes, ARENA_FIELDS)
         return dataclasses.replace(self, **changes)
+
+
+def _refuse_unknown(given: Mapping[str, Any], allowed: frozenset[str]) -> None:
+    unknown = sorted(set(given) - allowed)
+    if unknown:
+        raise ValueError(f"unknown configuration key(s) {unknown}; allowed: {sorted(allowed)}")
 
 
 def _robots_fit(n: int, radius: float, width: float, height: float) -> bool:
@@ -480,37 +531,51 @@ def lane_circuits(
     circuit's sink to another circuit's source is a long diagonal: circuits are spatially
     classifiable. Waiting lines run along the top and bottom walls toward the arena's centre.
     """
-    require(
-        isinstance(n_circuits, int) and n_circuits >= 1,
-        "n_circuits",
+    n = integer(
         n_circuits,
-        "an integer >= 1",
+        "n_circuits",
+        f"an integer in [1, {MAX_CIRCUITS}]",
+        lambda k: 1 <= k <= MAX_CIRCUITS,
+    )
+    length = "a finite length > 0 m"
+    width = real(width, "width", length, _positive)
+    height = real(height, "height", length, _positive)
+    wall_margin = real(wall_margin, "wall_margin", length, _positive)
+    require_together(
+        2 * wall_margin < min(width, height),
+        {"wall_margin": wall_margin, "width": width, "height": height},
+        "wall_margin below half the arena's smaller side",
     )
     if values is None:
-        values = [2200.0 - 200.0 * i for i in range(n_circuits)]
-    require(
-        len(values) == n_circuits, "values", values, f"a sequence of {n_circuits} circuit values"
-    )
+        values = [2200.0 - 200.0 * i for i in range(n)]
+    worth = [float(w) for w in _circuit_values(values, n)]
     xs = (
         [width / 2]
-        if n_circuits == 1
-        else [
-            wall_margin + i * (width - 2 * wall_margin) / (n_circuits - 1)
-            for i in range(n_circuits)
-        ]
+        if n == 1
+        else [wall_margin + i * (width - 2 * wall_margin) / (n - 1) for i in range(n)]
     )
     circuits = []
-    for x, w in zip(xs, values):
+    for x, w in zip(xs, worth):
         direction = (1.0, 0.0) if x <= width / 2 else (-1.0, 0.0)
         circuits.append(
             Circuit(
                 source=(x, height - wall_margin),
                 sink=(x, wall_margin),
-                value=float(w),
+                value=w,
                 queue_direction=direction,
             )
         )
     return tuple(circuits)
+
+
+def _circuit_values(values: object, n: int) -> tuple[float | int, ...]:
+    """`values` (one per circuit, `n` circuits), each checked on its own, as plain numbers."""
+    kind = f"{n} circuit values (finite numbers > 0)"
+    items = _items("values", values, kind)
+    require(len(items) == n, "values", values, f"a sequence of {kind}")
+    return tuple(
+        real(w, f"values[{i}]", "a finite number > 0", _positive) for i, w in enumerate(items)
+    )
 
 
 def _dahl2004() -> ArenaConfig:
@@ -624,9 +689,7 @@ def make_config(
         if config is not None
         else preset(DEFAULT_PRESET if preset_name is None else preset_name)
     )
-    unknown = sorted(set(overrides) - ARENA_KEYS)
-    if unknown:
-        raise ValueError(f"unknown configuration key(s) {unknown}; allowed: {sorted(ARENA_KEYS)}")
+    _refuse_unknown(overrides, ARENA_KEYS)
     changes = {k: v for k, v in overrides.items() if k in ARENA_FIELDS}
     if "speeds" in overrides:
         require(
@@ -634,14 +697,9 @@ def make_config(
         )
         changes["robots"] = robots_from_speeds(overrides["speeds"])
     if "values" in overrides:
-        circuits = changes.get("circuits", base.circuits)
-        values = overrides["values"]
-        require(
-            isinstance(values, Sequence) and len(values) == len(circuits),
-            "values",
-            values,
-            f"a sequence of {len(circuits)} circuit values",
-        )
+        circuits = _items("circuits", changes.get("circuits", base.circuits), "tavc_env.Circuit")
+        # kept as given (an int stays an int: saved trials' digests hash the circuits' reprs)
+        values = _circuit_values(overrides["values"], len(circuits))
         changes["circuits"] = tuple(
             dataclasses.replace(c, value=v) for c, v in zip(circuits, values)
         )
@@ -660,21 +718,19 @@ def preset_overrides(config: ArenaConfig, preset_name: str) -> tuple[tuple[str, 
     return tuple(sorted(changed, key=lambda item: item[0]))
 
 
+def _speed(v: float) -> bool:
+    return 0 < v <= MAX_SPEED_M_S
+
+
 def robots_from_speeds(speeds: Sequence[float]) -> tuple[Robot, ...]:
     """Robots with the given top speeds, labelled fast / slow / medium relative to the mean speed."""
-    require(
-        isinstance(speeds, Sequence) and len(speeds) >= 1 and all(is_number(s) for s in speeds),
-        "speeds",
-        speeds,
-        "a non-empty sequence of speeds in m/s",
-    )
-    for i, speed in enumerate(speeds):
-        require(
-            is_number(speed) and 0 < speed <= MAX_SPEED_M_S,
-            f"speeds[{i}]",
-            speed,
-            f"a speed in (0, {MAX_SPEED_M_S:g}] m/s",
-        )
+    allowed = "a non-empty sequence of speeds in m/s"
+    items = _items("speeds", speeds, "speeds in m/s")
+    require(len(items) >= 1, "speeds", speeds, allowed)
+    speeds = [
+        float(real(v, f"speeds[{i}]", f"a speed in (0, {MAX_SPEED_M_S:g}] m/s", _speed))
+        for i, v in enumerate(items)
+    ]
     mean = sum(speeds) / len(speeds)
     labels = [
         "fast" if s > mean + 1e-9 else "slow" if s < mean - 1e-9 else "medium" for s in speeds
@@ -696,27 +752,22 @@ def scaled_config(
     every station's waiting line to hold every other robot (the validation of `ArenaConfig`); if
     no height up to 80 m is enough, the lanes are moved further apart (x1.5, 2, 3, 4).
     """
-    require(is_integer(n_circuits) and n_circuits >= 1, "n_circuits", n_circuits, "an integer >= 1")
-    require(
-        is_integer(robots_per_circuit) and robots_per_circuit >= 1,
-        "robots_per_circuit",
-        robots_per_circuit,
-        "an integer >= 1",
+    n_circuits = integer(n_circuits, "n_circuits", "an integer >= 1", lambda k: k >= 1)
+    robots_per_circuit = integer(
+        robots_per_circuit, "robots_per_circuit", "an integer >= 1", lambda k: k >= 1
     )
-    require(
-        is_number(lane_spacing_m) and lane_spacing_m >= 3.0,
-        "lane_spacing_m",
-        lane_spacing_m,
-        "a spacing >= 3 m",
+    lane_spacing_m = real(
+        lane_spacing_m, "lane_spacing_m", "a finite spacing >= 3 m", lambda v: v >= 3.0
     )
+    cycle = robots_from_speeds(speeds)  # every speed checked, and at least one
     n = n_circuits * robots_per_circuit
-    require(
+    require_together(
         n <= MAX_SCALED_ROBOTS,
-        "n_circuits * robots_per_circuit",
-        n,
-        f"at most {MAX_SCALED_ROBOTS} robots (larger arenas take too long to lay out)",
+        {"n_circuits": n_circuits, "robots_per_circuit": robots_per_circuit},
+        f"at most {MAX_SCALED_ROBOTS} robots in all (n_circuits x robots_per_circuit; larger "
+        "arenas take too long to lay out)",
     )
-    robots = robots_from_speeds([speeds[i % len(speeds)] for i in range(n)])
+    robots = robots_from_speeds([cycle[i % len(cycle)].speed for i in range(n)])
     fastest = (max(robots, key=lambda r: r.speed),)
     values = [2200.0 - 10.0 * i for i in range(n_circuits)]
     # Each candidate arena is first built with the fastest robot alone: every check that does

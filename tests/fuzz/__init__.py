@@ -4,6 +4,9 @@ streams, seeds and stored trial files, checked against the package's promises:
 * a valid configuration runs an episode without a Python exception and without two robots (or a
   robot and a wall) overlapping by more than a tenth of the robot radius;
 * an invalid one raises a ValueError whose message names the offending field;
+* any value of any type in a number field of an arena, of its parts or of the helper constructors
+  is either accepted, stored as a plain float or int, and runs, or refused naming the field
+  (`test_number_types.py`; its outcomes are hypothesis events: `--hypothesis-show-statistics`);
 * a bad action or seed raises a ValueError naming it and changes nothing; the AEC view and the
   parallel view agree step for step on the same actions;
 * any sequence of calls to the AEC view (reset, step, observe, last, agent_iter, state; before

@@ -363,3 +363,63 @@ def deepest_overlap(env: tavc_env.TavcArenaEnv) -> float:
         np.fill_diagonal(dist, np.inf)
         deepest = max(deepest, float(2 * r - dist.min()))
     return deepest / r
+
+
+# -- numbers of every type (issue 28) -----------------------------------------------------------
+# Real types a float may or may not hold exactly; the config stores any it holds as a plain float.
+REAL_KINDS: dict[str, Callable[[float], Any]] = {
+    "float": float,
+    "float16": np.float16,
+    "float32": np.float32,
+    "float64": np.float64,
+    "longdouble": np.longdouble,
+    "Fraction": fractions.Fraction,  # exact from a float
+    "Decimal": decimal.Decimal,  # exact from a float
+}
+WHOLE_KINDS: tuple[Callable[[int], Any], ...] = (int, np.int64, np.int32, np.uint32)
+
+
+def _as_kind(kind: str, value: float) -> Any:
+    with np.errstate(over="ignore"):  # float16 beyond 65504 is inf (refused): a case like any
+        return REAL_KINDS[kind](value)
+
+
+def typed_number(lo: float, hi: float) -> st.SearchStrategy[Any]:
+    """A finite number in [lo, hi] as any real type, or a whole one as any integer type."""
+    reals = st.builds(_as_kind, st.sampled_from(sorted(REAL_KINDS)), _finite(lo, hi))
+    first, last = max(0, math.ceil(lo)), math.floor(hi)
+    if first > last:  # no whole number in the range
+        return reals
+    wholes = st.builds(
+        lambda make, v: make(v), st.sampled_from(WHOLE_KINDS), st.integers(first, last)
+    )
+    return st.one_of(reals, wholes)
+
+
+def typed_integer(lo: int, hi: int) -> st.SearchStrategy[Any]:
+    """An integer in [lo, hi] (lo >= 0) as a Python int or any numpy integer type that holds it."""
+    return st.builds(
+        lambda make, v: make(v),
+        st.sampled_from((int, np.int64, np.int16, np.uint8)),
+        st.integers(lo, hi),
+    )
+
+
+# What no number field should take for a number, and numbers at the edges of every type.
+HOSTILE: st.SearchStrategy[Any] = st.one_of(
+    NOT_A_NUMBER,
+    st.binary(max_size=3),
+    st.just(bytearray(b"\x01")),
+    st.just(np.True_),
+    st.just(None),
+    st.fractions(),  # mostly not held exactly by a float: refused with the float to give
+    st.decimals(allow_nan=True, allow_infinity=True),
+    st.integers(-(2**80), 2**80),
+    st.sampled_from([10**400, -(10**400), 2**53 + 1, 0, -1]),
+    st.floats(),  # nan, infinities, subnormals, huge
+    st.sampled_from([5e-324, 1e-300, 1e308, -0.0]),
+    st.builds(np.array, _finite(0.1, 1.0)),
+    st.lists(_finite(0.1, 1.0), max_size=2).map(np.array),
+    st.tuples(_finite(0.1, 1.0)),
+    st.text(max_size=3),
+)

@@ -216,14 +216,15 @@ BAD_CONFIGS: list[tuple[dict[str, Any], str]] = [
     ({"speeds": [0.3, 0.3, 0.3, -0.2, 0.2, 0.2]}, r"speeds\[3\] = -0\.2 is invalid; allowed"),
     ({"speeds": [0.0] * 6}, r"speeds\[0\] = 0\.0 is invalid"),
     ({"speeds": [3.0] * 6}, r"speeds\[0\] = 3\.0 is invalid; allowed: .*\(0, 2\]"),
-    ({"speeds": [0.3, NAN]}, r"speeds = \[0\.3, nan\] is invalid"),
+    ({"speeds": [0.3, NAN]}, r"speeds\[1\] = nan is invalid"),
     ({"speeds": []}, r"speeds = \[\] is invalid; allowed: a non-empty"),
     ({"speeds": [0.3], "robots": (tavc_env.Robot(speed=0.3),)}, r"speeds = .*speeds or robots"),
     ({"robots": ()}, r"robots = \(\) is invalid; allowed: at least one Robot"),
     ({"robots": (0.3,)}, r"robots\[0\] = 0\.3 is invalid; allowed: a tavc_env\.Robot"),
     (
         {"circuits": (tavc_env.Circuit(source=(13.0, 6.5), sink=(1.5, 1.5), value=2.0), LANES[1])},
-        r"circuits\[0\]\.source = \(13\.0, 6\.5\) is invalid; allowed: a point inside the arena",
+        r"circuits\[0\]\.source, width, height, robot_radius = \(13\.0, 6\.5\), 12\.0, 8\.0, 0\.22 "
+        r"is invalid; allowed: a point inside the arena",
     ),
     (
         {
@@ -232,26 +233,33 @@ BAD_CONFIGS: list[tuple[dict[str, Any], str]] = [
                 tavc_env.Circuit(source=(10.5, 6.5), sink=(10.5, -1.0), value=2.0),
             )
         },
-        r"circuits\[1\]\.sink = \(10\.5, -1\.0\) is invalid; allowed: a point inside the arena",
+        r"circuits\[1\]\.sink, width, height, robot_radius = \(10\.5, -1\.0\), .* is invalid; "
+        r"allowed: a point inside the arena",
     ),
     (  # inside the walls, but a robot standing there would overlap the wall
         {"circuits": (LANES[0], tavc_env.Circuit(source=(11.9, 6.5), sink=(10.5, 1.5), value=2.0))},
-        r"circuits\[1\]\.source = \(11\.9, 6\.5\) is invalid",
+        r"circuits\[1\]\.source, width, height, robot_radius = \(11\.9, 6\.5\), ",
     ),
     (
         {"circuits": (LANES[0], LANES[0])},
-        r"circuits\[1\]\.source \(distance to circuits\[0\]\.source\) = 0\.0 is invalid; "
+        r"circuits\[1\]\.source \(distance to circuits\[0\]\.source\), robot_radius = 0\.0, 0\.22 "
+        r"is invalid; "
         r"allowed: .*overlapping circuits",
     ),
     (
         {"circuits": (LANES[0], tavc_env.Circuit(source=(6.0, 6.5), sink=(1.8, 1.5), value=2.0))},
-        r"circuits\[1\]\.sink \(distance to circuits\[0\]\.sink\) = 0\.3 is invalid",
+        r"circuits\[1\]\.sink \(distance to circuits\[0\]\.sink\), robot_radius = 0\.3, 0\.22 is inv",
     ),
     ({"circuits": ()}, r"circuits = \(\) is invalid; allowed: at least one Circuit"),
-    ({"speeds": [0.25] * 100}, r"robots = '100 robots' is invalid; allowed: .*cannot fit"),
+    (
+        {"speeds": [0.25] * 100},
+        r"robots, robot_radius, width, height = '100 robots', 0\.22, 12\.0, 8\.0 is invalid; "
+        r"allowed: .*cannot fit",
+    ),
     (
         {"breakdowns": (tavc_env.Breakdown(robot=6, at_s=10.0),)},
-        r"breakdowns\[0\]\.robot = 6 is invalid; allowed: a robot index in \[0, 5\]",
+        r"breakdowns\[0\]\.robot, len\(robots\) = 6, 6 is invalid; allowed: a robot index in "
+        r".*\[0, 5\]",
     ),
     ({"breakdowns": ("robot_0",)}, r"breakdowns\[0\] = 'robot_0' is invalid"),
     ({"dt": 0.0}, r"dt = 0\.0 is invalid; allowed: a physics step in \(0, 0\.5\]"),
@@ -282,18 +290,24 @@ BAD_CONFIGS: list[tuple[dict[str, Any], str]] = [
     ({"preset": "dahl2005"}, r"preset = 'dahl2005' is invalid; allowed: .*'dahl2004'"),
     ({"config": "dahl2004"}, r"config = 'dahl2004' is invalid; allowed: a tavc_env\.ArenaConfig"),
     ({"values": (1.0,)}, r"values = \(1\.0,\) is invalid; allowed: a sequence of 2"),
-    ({"values": (-1.0, 2.0)}, r"value = -1\.0 is invalid; allowed: a finite number > 0"),
-    ({"values": (0.0, 2.0)}, r"value = 0\.0 is invalid"),
+    ({"values": (-1.0, 2.0)}, r"values\[0\] = -1\.0 is invalid; allowed: a finite number > 0"),
+    ({"values": (0.0, 2.0)}, r"values\[0\] = 0\.0 is invalid"),
     ({"speed_noise": 0.5}, r"speed_noise = 0\.5 is invalid; allowed: .*\[0, 0\.3\]"),
     ({"speed_noise": -0.1}, r"speed_noise = -0\.1 is invalid"),
     ({"robot_radius": 0.0}, r"robot_radius = 0\.0 is invalid"),
-    ({"robot_radius": 3.0}, r"robot_radius = 3\.0 is invalid; allowed: at most a quarter"),
+    (
+        {"robot_radius": 3.0},
+        r"robot_radius, width, height = 3\.0, 12\.0, 8\.0 is invalid; allowed: .*a quarter",
+    ),
     ({"width": -12.0}, r"width = -12\.0 is invalid"),
     ({"height": 0}, r"height = 0 is invalid"),
     ({"source_service_s": -1.0}, r"source_service_s = -1\.0 is invalid; allowed: .*>= 0"),
     ({"sink_service_s": INF}, r"sink_service_s = inf is invalid"),
-    ({"queue_spacing_m": 0.2}, r"queue_spacing_m = 0\.2 is invalid; allowed: >= the robot diam"),
-    ({"queue_offset_m": 0.1}, r"queue_offset_m = 0\.1 is invalid"),
+    (
+        {"queue_spacing_m": 0.2},
+        r"queue_spacing_m, robot_radius = 0\.2, 0\.22 is invalid; allowed: .*the robot diam",
+    ),
+    ({"queue_offset_m": 0.1}, r"queue_offset_m, robot_radius = 0\.1, 0\.22 is invalid"),
     ({"join_radius_m": 0.0}, r"join_radius_m = 0\.0 is invalid"),
     ({"dock_tolerance_m": -0.1}, r"dock_tolerance_m = -0\.1 is invalid"),
     ({"max_turn_rate": 0.0}, r"max_turn_rate = 0\.0 is invalid"),
@@ -414,7 +428,10 @@ def test_property_stations_outside_the_arena_are_rejected(
         if which == "source"
         else tavc_env.Circuit(source=circuit.source, sink=point, value=circuit.value)
     )
-    pattern = rf"circuits\[1\]\.{which} = {re.escape(repr(point))} is invalid; allowed: a point"
+    pattern = (
+        rf"circuits\[1\]\.{which}, width, height, robot_radius = {re.escape(repr(point))}, 12\.0, "
+        r"8\.0, 0\.22 is invalid; allowed: a point"
+    )
     with pytest.raises(ValueError, match=pattern):
         tavc_env.parallel_env(circuits=(LANES[0], moved))
 

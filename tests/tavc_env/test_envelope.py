@@ -112,7 +112,9 @@ def test_a_step_longer_than_the_envelope_is_refused_with_the_bound(
     longest = MAX_STEP_OVER_RADIUS * radius / top
     dt = kwargs.get("dt", 0.1)
     pattern = (
-        rf"^dt = {re.escape(repr(dt))} is invalid; allowed: a physics step of at most "
+        rf"^dt, robot_radius, robots\[\d+\]\.speed = {re.escape(repr(dt))}, "
+        rf"{re.escape(repr(radius))}, {re.escape(repr(top))} is invalid; allowed: a physics step "
+        "of at most "
         rf"{MAX_STEP_OVER_RADIUS:g} x robot_radius / the top speed = {longest:.4g} s"
     )
     with pytest.raises(ValueError, match=pattern) as error:
@@ -149,7 +151,8 @@ def test_a_sensing_range_not_beyond_contact_is_refused(factor: float) -> None:
     """`sensing_range_m == 2 * robot_radius` used to be accepted and divided by zero mid-run."""
     value = factor * 0.22
     pattern = (
-        rf"^sensing_range_m = {re.escape(repr(value))} is invalid; allowed: a range of at least "
+        rf"^sensing_range_m, robot_radius = {re.escape(repr(value))}, 0\.22 is invalid; "
+        "allowed: a range of at least "
         rf"{MIN_SENSING_OVER_RADIUS:g} x robot_radius = 0\.55 m"
     )
     with pytest.raises(ValueError, match=pattern):

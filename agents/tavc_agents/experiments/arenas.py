@@ -139,7 +139,8 @@ def refusal_category(error: ValueError) -> str:
     """Why validation refused an arena, as a short category: what the message names, with
     circuit and robot indices dropped ("waiting line too short", "stations too close",
     "dt", "robots", ...)."""
-    name = str(error).partition(" = ")[0]
+    # a rule relating fields names them all ("dt, robot_radius, robots[0].speed"): the first
+    name = str(error).partition(" = ")[0].split(", ")[0]
     if name.endswith("waiting line"):
         return "waiting line too short"
     if "(distance to " in name:

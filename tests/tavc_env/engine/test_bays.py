@@ -45,7 +45,9 @@ def test_bad_bay_counts_are_refused_with_what_is_allowed() -> None:
             tavc_env.make_config("dahl2004", station_bays=bad)
     with pytest.raises(
         ValueError,
-        match=r"^circuits\[0\]\.source bays = 'room for \d bays' is invalid; allowed: room for all 8",
+        match=r"^circuits\[0\]\.source bays, circuits, station_bays, queue_spacing_m, "
+        r"queue_offset_m, robot_radius, width, height = 'room for \d bays', '2 circuits', 8, 1\.2, "
+        r"0\.9, 0\.22, 12\.0, 8\.0 is invalid; allowed: room for all 8",
     ):
         tavc_env.make_config("dahl2004", station_bays=8, queue_spacing_m=1.2)
 

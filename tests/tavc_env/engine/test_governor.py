@@ -66,7 +66,9 @@ def test_off_by_default_and_bounded_by_what_a_robot_senses() -> None:
     assert tavc_env.preset("dahl2004").clearance_governor_m == 0.0
     tavc_env.make_config("dahl2004", sensing_range_m=1.5, clearance_governor_m=1.06)
     for bad in (-0.1, 1.2, math.nan, "0.5"):
-        with pytest.raises(ValueError, match=r"^clearance_governor_m = .* is invalid; allowed: 0"):
+        # on its own (a number >= 0), or with the fields it relates to (within the range sensed)
+        named = r"^clearance_governor_m(, sensing_range_m, robot_radius)? = "
+        with pytest.raises(ValueError, match=named + r".* is invalid; allowed: 0"):
             tavc_env.make_config("dahl2004", sensing_range_m=1.5, clearance_governor_m=bad)
 
 
