@@ -22,7 +22,7 @@ from typing import Annotated, Any
 import numpy as np
 import tyro
 
-from tavc_agents.experiments.files import read_record
+from tavc_agents.experiments.files import RECORD_MAX_BYTES, read_bytes, read_record
 from tavc_agents.experiments.runner import Event, TrialResult
 from tavc_agents.experiments.study import Outcome
 from tavc_agents.experiments.sweep import TrialSpec, run_spec
@@ -70,8 +70,7 @@ class Settings:
 
 def _compact_record(path: str) -> bool:
     """Whether `path` holds a study's compact record ({"record": ..., "result": ...})."""
-    with open(path, "rb") as f:
-        return f.read(11) == b'{"record": '
+    return read_bytes(path, RECORD_MAX_BYTES, "saved record")[:11] == b'{"record": '
 
 
 def comparable(result: TrialResult, fields: set[str]) -> Any:
