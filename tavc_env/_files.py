@@ -51,8 +51,10 @@ def kind_of(mode: int) -> str:
     return "not a regular file"
 
 
-def _refuse(path: Path, what: str, why: str) -> CorruptFileError:
-    return CorruptFileError(f"{path} {why}; allowed: a {what} that is a regular file")
+def _refuse(path: Path, what: str, why: str, allowed: str = "") -> CorruptFileError:
+    return CorruptFileError(
+        f"{path} {why}; allowed: {allowed or f'a {what} as this package writes it'}"
+    )
 
 
 def _one_line(error: BaseException) -> str:
@@ -70,7 +72,12 @@ def read_bytes(path: str | Path, limit: int, what: str = "file") -> bytes:
     except OSError as error:
         raise _refuse(path, what, f"cannot be looked at ({_one_line(error)})") from None
     if not stat.S_ISREG(mode):
-        raise _refuse(path, what, f"is {kind_of(mode)}, not a regular file")
+        raise _refuse(
+            path,
+            what,
+            f"is {kind_of(mode)}, not a regular file",
+            f"a {what} that is a regular file",
+        )
     flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
     try:
         fd = os.open(path, flags | getattr(os, "O_CLOEXEC", 0))
@@ -79,9 +86,19 @@ def read_bytes(path: str | Path, limit: int, what: str = "file") -> bytes:
     with os.fdopen(fd, "rb", buffering=0) as file:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):  # swapped after the look
-            raise _refuse(path, what, f"is {kind_of(info.st_mode)}, not a regular file")
+            raise _refuse(
+                path,
+                what,
+                f"is {kind_of(info.st_mode)}, not a regular file",
+                f"a {what} that is a regular file",
+            )
         if info.st_size > limit:
-            raise _refuse(path, what, f"holds {info.st_size} bytes, more than the {limit} allowed")
+            raise _refuse(
+                path,
+                what,
+                f"holds {info.st_size} bytes, more than the {limit} allowed",
+                f"a {what} of at most {limit} bytes",
+            )
         chunks: list[bytes] = []
         size = 0
         try:
@@ -94,7 +111,12 @@ def read_bytes(path: str | Path, limit: int, what: str = "file") -> bytes:
         except OSError as error:
             raise _refuse(path, what, f"cannot be read ({_one_line(error)})") from None
     if size > limit:
-        raise _refuse(path, what, f"grew past the {limit} bytes allowed while it was read")
+        raise _refuse(
+            path,
+            what,
+            f"grew past the {limit} bytes allowed while it was read",
+            f"a {what} of at most {limit} bytes",
+        )
     return b"".join(chunks)
 
 
@@ -138,6 +160,10 @@ def parse_json(path: str | Path, raw: bytes | str, what: str = "file", nan: bool
     except UnicodeDecodeError as error:
         raise _refuse(path, what, f"is not UTF-8 text ({error}): garbled") from None
     except ValueError as error:  # not JSON, or an integer too long to convert
+        if "integer string conversion" in str(error):  # CPython's int-string limit
+            raise _refuse(
+                path, what, f"holds an integer too long to convert ({_one_line(error)})"
+            ) from None
         raise _refuse(
             path, what, f"is not valid JSON ({_one_line(error)}): truncated or garbled"
         ) from None

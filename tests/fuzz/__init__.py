@@ -7,7 +7,10 @@ streams, seeds and stored trial files, checked against the package's promises:
 * a bad action or seed raises a ValueError naming it and changes nothing; the AEC view and the
   parallel view agree step for step on the same actions;
 * a truncated, garbled or edited trial file raises `CorruptFileError` (a ValueError) naming the
-  file, and a resumed sweep runs that trial again; no trial file is lost or left half-written.
+  file, and a resumed sweep runs that trial again; no trial file is lost or left half-written;
+* a run folder whose trial slots or provenance are replaced by folders, links, FIFOs, devices,
+  garbled, non-finite or oversized files resumes (damaged trials named, moved aside and rerun,
+  intact ones resumed) or is refused in one line, and never hangs (`test_run_folders.py`).
 
 Two profiles (tests/fuzz/conftest.py): the default runs a few hundred examples in all, the same
 ones every time, as part of the normal test run; the long one draws 25 times as many, fresh each
