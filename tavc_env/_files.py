@@ -150,6 +150,7 @@ def parse_json(path: str | Path, raw: bytes | str, what: str = "file", nan: bool
     path = Path(path)
     try:
         data = json.loads(raw, parse_constant=_no_constant if not nan else _nan_only)
+        where = first_not_finite(data, nan)  # a literal too large for a float reads as infinity
     except _NotFinite as error:
         raise _refuse(path, what, f"holds the value {error} (not a finite number)") from None
     except RecursionError:
@@ -167,8 +168,7 @@ def parse_json(path: str | Path, raw: bytes | str, what: str = "file", nan: bool
         raise _refuse(
             path, what, f"is not valid JSON ({_one_line(error)}): truncated or garbled"
         ) from None
-    where = first_not_finite(data, nan)
-    if where is not None:  # a literal too large for a float, read as infinity
+    if where is not None:
         raise _refuse(path, what, f"holds a value that is not a finite number at {where}")
     return data
 
