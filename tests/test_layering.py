@@ -19,6 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # (layer, module prefix): the longest matching prefix decides a module's layer.
 LAYERS: list[tuple[int, str]] = [
     (0, "tavc_env._validation"),
+    (0, "tavc_env._files"),  # safe readers: every reader of the package uses them
     (0, "tavc_env.layout"),
     (0, "tavc_env.config"),
     (0, "tavc_env.metrics"),

@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from collections.abc import Sequence
@@ -48,7 +47,7 @@ COMMANDS = {
 
 def _allocator(args: argparse.Namespace) -> Any:
     from tavc_agents.experiments.registry import make_allocator
-    from tavc_agents.model import missing_model, model_path
+    from tavc_agents.model import missing_model, model_path, read_model
     from tavc_agents.studies.common import parse_key_values
 
     params = parse_key_values(args.param, "--param", "temperature=0.01")
@@ -61,8 +60,8 @@ def _allocator(args: argparse.Namespace) -> Any:
             )
         path = model_path(args.preset, args.model)
         try:
-            params["model"] = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as error:
+            params["model"] = read_model(path)
+        except ValueError as error:
             raise ValueError(
                 f"--model {path} could not be read ({error}); allowed: a model.json written by "
                 "the tavc_model study (tavc bench tavc_model)"

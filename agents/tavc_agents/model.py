@@ -29,9 +29,11 @@ from typing import Any
 import numpy as np
 
 from tavc_env import ArenaConfig, Robot, metrics
+from tavc_env._files import MIB, read_json
 from tavc_env._validation import is_number, require
 
 REFERENCE_MODELS = Path(__file__).parent / "data" / "models"
+MODEL_MAX_BYTES = 16 * MIB  # the largest shipped model (large_team.json) is 46 KiB
 """The measured models the package ships, `<preset>.json` each: what the model-based allocators
 (`static`, `greedy`, `auction`) use by default. They are package data, so an installed wheel has
 them; the `tavc_model` study writes them (`--update-reference`), and this is their only copy."""
@@ -295,9 +297,10 @@ class CompletionModel:
 
     @classmethod
     def load(cls, path: str | Path) -> CompletionModel:
-        import json
-
-        return cls.from_dict(json.loads(Path(path).read_text()))
+        """The model saved at `path` (a model.json), read safely (`read_model`)."""
+        data = read_model(path)
+        require(isinstance(data, Mapping), f"model in {path}", type(data).__name__, "a JSON object")
+        return cls.from_dict(data)
 
     def check_team(self, classes: SpeedClasses) -> None:
         """Raise unless `classes` (of an arena's robots) is the team this model describes."""
@@ -360,6 +363,12 @@ def missing_model(preset: str, path: Path | None = None) -> str | None:
         f"no TAVC model of {preset!r} ships with the package (it has those of {shipped}); "
         f"measure one with `tavc bench tavc_model --preset {preset}` and pass its model.json"
     )
+
+
+def read_model(path: str | Path) -> Any:
+    """The JSON of the model file `path`, read safely (a regular file of at most
+    `MODEL_MAX_BYTES`, finite numbers; `tavc_env._files`): a ValueError naming it otherwise."""
+    return read_json(path, MODEL_MAX_BYTES, "TAVC model (model.json)")
 
 
 def load_model(preset: str, path: Path | None = None) -> CompletionModel:

@@ -13,7 +13,10 @@ streams, seeds and stored trial files, checked against the package's promises:
   reset, mid-episode, after the end; valid and unknown agents and actions) does what the AEC
   contract says or raises the package's ValueError, changing nothing;
 * a truncated, garbled or edited trial file raises `CorruptFileError` (a ValueError) naming the
-  file, and a resumed sweep runs that trial again; no trial file is lost or left half-written.
+  file, and a resumed sweep runs that trial again; no trial file is lost or left half-written;
+* a run folder whose trial slots or provenance are replaced by folders, links, FIFOs, devices,
+  garbled, non-finite or oversized files resumes (damaged trials named, moved aside and rerun,
+  intact ones resumed) or is refused in one line, and never hangs (`test_run_folders.py`).
 
 Two profiles (tests/fuzz/conftest.py): the default runs a few hundred examples in all, the same
 ones every time, as part of the normal test run; the long one draws 25 times as many, fresh each

@@ -10,7 +10,6 @@ with `tavc_agents.analysis.stats`. A summary row is a dict: section, quantity, w
 
 from __future__ import annotations
 
-import csv
 import math
 from collections import defaultdict
 from collections.abc import Sequence
@@ -21,6 +20,7 @@ import numpy as np
 
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.stats import bootstrap_ratio_ci, mean_ci, mean_sd, ratio_ci
+from tavc_agents.experiments.files import read_csv
 from tavc_agents.experiments.measurement import FixedRun
 from tavc_env.engine.tasks import Mode
 
@@ -141,22 +141,21 @@ def read_group_rows(path: Path) -> list[Row]:
     """The group rows saved in a runs CSV (`interference_runs.csv`), typed as `group_rows` made
     them: counts as int, times as float, and an empty cell (no time shares) left out."""
     rows = []
-    with open(path, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        if reader.fieldnames != RUN_FIELDS:
-            raise ValueError(f"{path} has columns {reader.fieldnames}; allowed: {RUN_FIELDS}")
-        for raw in reader:
-            row: Row = {}
-            for key, text in raw.items():
-                if text == "":
-                    continue
-                if key in _INT_FIELDS:
-                    row[key] = int(text)
-                elif key.endswith("_s") or key.endswith("_s_per_task"):
-                    row[key] = float(text)
-                else:
-                    row[key] = text
-            rows.append(row)
+    reader = read_csv(path)
+    if reader.fieldnames != RUN_FIELDS:
+        raise ValueError(f"{path} has columns {reader.fieldnames}; allowed: {RUN_FIELDS}")
+    for raw in reader:
+        row: Row = {}
+        for key, text in raw.items():
+            if text == "":
+                continue
+            if key in _INT_FIELDS:
+                row[key] = int(text)
+            elif key.endswith("_s") or key.endswith("_s_per_task"):
+                row[key] = float(text)
+            else:
+                row[key] = text
+        rows.append(row)
     return rows
 
 

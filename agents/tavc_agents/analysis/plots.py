@@ -8,7 +8,6 @@ only when a plot is drawn.
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -17,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from tavc_agents.experiments.files import read_csv
 from tavc_agents.experiments.runner import TrialResult
 from tavc_env import metrics
 
@@ -142,12 +142,11 @@ def q_trajectories(result: TrialResult, path: str | Path) -> None:
 
 def interference_curve(summary_csv: str | Path, path: str | Path) -> None:
     """t(n) per circuit with 95 % intervals, from `interference.csv` (benchmarks/interference.py)."""
-    with open(summary_csv, newline="", encoding="utf-8") as fh:
-        rows = [
-            r
-            for r in csv.DictReader(fh)
-            if r.get("section") == "t_n" and r.get("quantity") == "mean task time (s)"
-        ]
+    rows = [
+        r
+        for r in read_csv(summary_csv)
+        if r.get("section") == "t_n" and r.get("quantity") == "mean task time (s)"
+    ]
     if not rows:
         raise ValueError(
             f"{summary_csv} has no t(n) rows; allowed: the interference.csv written by "

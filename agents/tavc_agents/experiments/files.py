@@ -9,13 +9,18 @@ a ValueError naming the path and what it is.
 Stored records carry a schema version and a SHA-256 checksum of their content, checked on load
 (older records without one must be listed in a `CHECKSUMS.sha256` manifest beside them): a
 truncated, garbled, too deeply nested or hand-edited file is reported in one line naming the file
-and what is wrong (`CorruptFileError`), never used silently.
+and what is wrong (`CorruptFileError`), never used silently. Records are read through the safe
+readers of `tavc_env._files` (re-exported here): only a regular file of a bounded size, opened
+without following a link or blocking, whose numbers are all finite; the checksums protect against
+accidental damage, not a deliberate edit (anyone can recompute one).
 """
 
 from __future__ import annotations
 
 import contextlib
+import csv
 import hashlib
+import io
 import json
 import os
 import stat
@@ -25,28 +30,49 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from tavc_env._files import (
+    MIB,
+    CorruptFileError,
+    first_not_finite,
+    kind_of,
+    parse_json,
+    read_bytes,
+    read_json,
+    read_text,
+)
+
+__all__ = [
+    "MANIFEST",
+    "MANIFEST_MAX_BYTES",
+    "MIB",
+    "RECORD_MAX_BYTES",
+    "REPORT_MAX_BYTES",
+    "SCHEMA_VERSION",
+    "CorruptFileError",
+    "atomic_path",
+    "check_writable",
+    "kind_of",
+    "manifest_entry",
+    "read_bytes",
+    "read_csv",
+    "read_json",
+    "read_record",
+    "read_report",
+    "read_text",
+    "write_manifest",
+    "write_record",
+    "write_text",
+]
+
 SCHEMA_VERSION = 1
 # Vouches for records saved before they carried their own checksum; a record with neither is
 # refused (it may be a hand edit that deleted the checksum).
 MANIFEST = "CHECKSUMS.sha256"
-
-
-class CorruptFileError(ValueError):
-    """A stored file that cannot be trusted (truncated, not JSON, edited, wrong schema)."""
-
-
-def _kind(mode: int) -> str:
-    for test, name in (
-        (stat.S_ISLNK, "a symbolic link"),
-        (stat.S_ISFIFO, "a FIFO"),
-        (stat.S_ISCHR, "a character device"),
-        (stat.S_ISBLK, "a block device"),
-        (stat.S_ISSOCK, "a socket"),
-        (stat.S_ISDIR, "a folder"),
-    ):
-        if test(mode):
-            return name
-    return "not a regular file"
+# Size bounds of what is read back: far above anything saved (the largest committed trial record
+# is 0.4 MiB, the largest report well under 1 MiB), far below what would exhaust memory.
+RECORD_MAX_BYTES = 64 * MIB
+MANIFEST_MAX_BYTES = 16 * MIB
+REPORT_MAX_BYTES = 64 * MIB
 
 
 def check_writable(path: str | Path) -> Path:
@@ -59,7 +85,7 @@ def check_writable(path: str | Path) -> Path:
         mode = None
     if mode is not None and not stat.S_ISREG(mode):
         raise ValueError(
-            f"{path} is {_kind(mode)}; refusing to replace it with a regular file; allowed: a "
+            f"{path} is {kind_of(mode)}; refusing to replace it with a regular file; allowed: a "
             "new path or an existing regular file"
         )
     if not path.parent.is_dir():
@@ -116,25 +142,35 @@ def _digest(data: Mapping[str, Any]) -> str:
     return hashlib.sha256(canonical.encode()).hexdigest()
 
 
-def write_record(path: str | Path, data: Mapping[str, Any]) -> Path:
-    """Write `data` as JSON with `schema` and `checksum` fields added (atomically)."""
+def write_record(path: str | Path, data: Mapping[str, Any], nan: bool = False) -> Path:
+    """Write `data` as JSON with `schema` and `checksum` fields added (atomically). Its numbers
+    must be finite (NaN is allowed with `nan`, for records that use it for "undefined"), as
+    `read_record` checks them: a ValueError naming the path and the value otherwise."""
     body = {k: v for k, v in data.items() if k not in ("schema", "checksum")}
+    where = first_not_finite(body, nan)
+    if where is not None:
+        raise ValueError(
+            f"{path}: the value at {where} is not a finite number; allowed: finite numbers "
+            f"{'or NaN ' if nan else ''}(a record is refused on load otherwise)"
+        )
     body["schema"] = SCHEMA_VERSION
     body["checksum"] = _digest(body)
     return write_text(path, json.dumps(body))
 
 
-def read_record(path: str | Path) -> dict[str, Any]:
-    """The JSON record at `path`, checked: its checksum and schema, or, for a record saved before
+def read_record(
+    path: str | Path, nan: bool = False, limit: int = RECORD_MAX_BYTES
+) -> dict[str, Any]:
+    """The JSON record at `path`, checked: a regular file of at most `limit` bytes whose numbers
+    are finite (NaN allowed with `nan`), its checksum and schema, or, for a record saved before
     records carried a checksum, its entry in the `CHECKSUMS.sha256` beside it (a record with
-    neither is refused). A `CorruptFileError` names the file and what is wrong."""
+    neither is refused). A `CorruptFileError` names the file and what is wrong, in one line."""
     path = Path(path)
-    raw = path.read_bytes()
+    raw = read_bytes(path, limit, "saved record")
+    data = parse_json(path, raw, "saved record", nan)
     try:
-        return _checked(path, raw)
-    except RecursionError:
-        # Both decoding and re-encoding (for the checksum) recurse once per level of nesting;
-        # no saved record comes near the limit, so this is a damaged or planted file.
+        return _checked(path, raw, data)
+    except RecursionError:  # re-encoding for the checksum recurses as decoding did
         raise CorruptFileError(
             f"{path} is nested deeper than the interpreter's recursion limit "
             f"({sys.getrecursionlimit()}) allows: not a saved record; allowed: a record saved by "
@@ -142,13 +178,7 @@ def read_record(path: str | Path) -> dict[str, Any]:
         ) from None
 
 
-def _checked(path: Path, raw: bytes) -> dict[str, Any]:
-    try:
-        data = json.loads(raw)
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise CorruptFileError(
-            f"{path} is not valid JSON ({error}): truncated or garbled"
-        ) from None
+def _checked(path: Path, raw: bytes, data: Any) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise CorruptFileError(f"{path} holds {type(data).__name__}, not a JSON object")
     if "checksum" in data:
@@ -168,7 +198,11 @@ def _checked(path: Path, raw: bytes) -> dict[str, Any]:
     manifest = path.parent / MANIFEST
     expected = manifest_entry(path)
     if expected is None:
-        where = f"is not listed in {manifest}" if manifest.exists() else f"there is no {manifest}"
+        where = (
+            f"is not listed in {manifest}"
+            if os.path.lexists(manifest)
+            else f"there is no {manifest}"
+        )
         raise CorruptFileError(
             f"{path} has no checksum and {where}: it was edited or not saved by this package; "
             f"allowed: a record with its checksum, or an older one listed in {MANIFEST} beside it"
@@ -185,14 +219,12 @@ def manifest_entry(path: Path) -> str | None:
     """The SHA-256 of `path` listed in its folder's manifest, if there is one (a garbled
     manifest raises `CorruptFileError` naming it)."""
     manifest = path.parent / MANIFEST
-    if not manifest.exists():
+    if not os.path.lexists(manifest):
         return None
     try:
-        text = manifest.read_text(encoding="utf-8")
-    except UnicodeDecodeError as error:
-        raise CorruptFileError(
-            f"{path} cannot be checked: {manifest} is not UTF-8 text ({error}): garbled"
-        ) from None
+        text = read_text(manifest, MANIFEST_MAX_BYTES, "checksum manifest")
+    except CorruptFileError as error:
+        raise CorruptFileError(f"{path} cannot be checked: {error}") from None
     for line in text.splitlines():
         digest, _, name = line.partition("  ")
         if name == path.name:
@@ -205,7 +237,21 @@ def write_manifest(folder: str | Path, pattern: str = "*.json") -> Path:
     (the format `sha256sum -c` reads), for records saved before they carried a checksum."""
     folder = Path(folder)
     lines = [
-        f"{hashlib.sha256(p.read_bytes()).hexdigest()}  {p.name}"
+        f"{hashlib.sha256(read_bytes(p, RECORD_MAX_BYTES, 'saved record')).hexdigest()}  {p.name}"
         for p in sorted(folder.glob(pattern))
     ]
     return write_text(folder / MANIFEST, "\n".join(lines) + "\n")
+
+
+def read_report(path: str | Path) -> Any:
+    """A JSON report (or any JSON result file this package writes without a checksum, such as a
+    study's plan), read safely: a regular file of at most `REPORT_MAX_BYTES`, finite numbers
+    (reports write undefined values as null); a `CorruptFileError` naming it otherwise."""
+    return read_json(path, REPORT_MAX_BYTES, "JSON report")
+
+
+def read_csv(path: str | Path) -> csv.DictReader[str]:
+    """A `csv.DictReader` over the CSV table at `path` (a report's, `references.csv`, ...), read
+    safely: a regular file of at most `REPORT_MAX_BYTES` of UTF-8 text."""
+    text = read_text(path, REPORT_MAX_BYTES, "CSV table")
+    return csv.DictReader(io.StringIO(text, newline=""))

@@ -13,6 +13,7 @@ import datetime as _dt
 import json
 import os
 import platform
+import stat
 import subprocess
 import sys
 import time
@@ -21,10 +22,11 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, TypeVar
 
-from tavc_agents.experiments.files import write_text
+from tavc_agents.experiments.files import MIB, CorruptFileError, kind_of, read_json, write_text
 from tavc_agents.experiments.sweep import JobKind, run_jobs
 
 PROVENANCE_FILE = "provenance.json"
+PROVENANCE_MAX_BYTES = 1 * MIB  # a saved one is about 1 KiB
 
 
 def _checkout() -> Path | None:
@@ -120,12 +122,38 @@ def run_metadata(**extra: Any) -> dict[str, Any]:
 
 
 def load_provenance(folder: str | Path) -> dict[str, Any] | None:
-    """The provenance saved in `folder`, or None."""
+    """The provenance saved in `folder`, or None if there is none; a `CorruptFileError` naming
+    the file, in one line, if it is not a regular file holding a JSON object (read safely:
+    `tavc_env._files`)."""
     path = Path(folder) / PROVENANCE_FILE
-    if not path.exists():
+    if not os.path.lexists(path):
         return None
-    data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    data = read_json(path, PROVENANCE_MAX_BYTES, "provenance record")
+    if not isinstance(data, dict):
+        raise CorruptFileError(
+            f"{path} holds {type(data).__name__}, not a provenance record (a JSON object); "
+            "allowed: the provenance.json this package writes (remove it and run again to have a "
+            "new one written)"
+        )
     return data
+
+
+def _replaceable_provenance(folder: Path) -> CorruptFileError | None:
+    """Check `folder`'s provenance before any job runs: None if it is absent or reads; the error
+    if it is a damaged regular file (a run replaces it with its own); raised if it is anything
+    else (a folder, a FIFO, a link, a device), which a run cannot replace without deleting it."""
+    path = folder / PROVENANCE_FILE
+    try:
+        load_provenance(folder)
+    except CorruptFileError as error:
+        mode = path.lstat().st_mode
+        if not stat.S_ISREG(mode):
+            raise CorruptFileError(
+                f"{path} is {kind_of(mode)}, not a regular file; allowed: a provenance.json this "
+                "package wrote, or none (remove it and run again)"
+            ) from None
+        return error
+    return None
 
 
 def save_provenance(folder: str | Path, meta: Mapping[str, Any]) -> Path:
@@ -157,8 +185,12 @@ def run_recorded(
     When this run computes any job, the provenance is this run's (taken before the jobs start,
     so it names the commit they ran from), with its wall time and how many jobs were run or
     resumed, and it is saved in `report_dir`. When every job is resumed, the provenance saved
-    there by the run that computed them is returned (or, if there is none, this run's)."""
+    there by the run that computed them is returned (or, if there is none, this run's). A
+    damaged provenance.json (garbled, not a JSON object) is named in one line and replaced by this
+    run's; one that is not a regular file (a folder, a FIFO, a link) is refused before any job
+    runs, as a run could only replace it by deleting it."""
     started = time.perf_counter()
+    damaged = _replaceable_provenance(Path(report_dir))  # before any job runs
     meta = run_metadata(settings=dict(settings))
     resumed: list[str] = []
 
@@ -169,7 +201,7 @@ def run_recorded(
     results = run_jobs(
         jobs, kind, jobs_dir, workers, note, progress_bar=progress_bar, backend=backend
     )
-    stored = load_provenance(report_dir)
+    stored = None if damaged else load_provenance(report_dir)
     if len(resumed) == len(jobs) and stored is not None:
         return results, stored
     meta.update(
@@ -179,6 +211,8 @@ def run_recorded(
     )
     if wall_of is not None:
         meta["trial_wall_s_total"] = sum(wall_of(r) for r in results.values())
-    if len(resumed) < len(jobs):
+    if len(resumed) < len(jobs) or damaged:
+        if damaged:
+            print(f"{damaged}; replaced by this run's provenance", file=sys.stderr)
         save_provenance(report_dir, meta)
     return results, meta

@@ -17,7 +17,6 @@ import csv
 import dataclasses
 import datetime as _dt
 import itertools
-import json
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -27,6 +26,7 @@ from typing import Any, ClassVar, Literal, TypeVar
 
 import tyro
 
+from tavc_agents.experiments.files import REPORT_MAX_BYTES, read_report, read_text
 from tavc_agents.experiments.folders import FolderError, check_out_folder, hold_folder
 from tavc_agents.experiments.limits import check_settings
 from tavc_agents.experiments.packs import pack_new
@@ -349,7 +349,7 @@ def recorded_settings(table: Path) -> dict[str, Any] | None:
     if not report.is_file():
         return None
     try:
-        settings = json.loads(report.read_text(encoding="utf-8"))["metadata"]["settings"]
+        settings = read_report(report)["metadata"]["settings"]
     except (ValueError, KeyError, TypeError):
         return None
     return {k: v for k, v in settings.items() if k != "out"} if isinstance(settings, dict) else None
@@ -358,8 +358,8 @@ def recorded_settings(table: Path) -> dict[str, Any] | None:
 def differing_cells(a: Path, b: Path) -> tuple[int, int]:
     """How many cells of CSV `a` differ from CSV `b` (cells of rows or columns only one has
     count as differing), and how many cells the larger has."""
-    rows_a = list(csv.reader(a.read_text(encoding="utf-8").splitlines()))
-    rows_b = list(csv.reader(b.read_text(encoding="utf-8").splitlines()))
+    rows_a = list(csv.reader(read_text(a, REPORT_MAX_BYTES, "CSV table").splitlines()))
+    rows_b = list(csv.reader(read_text(b, REPORT_MAX_BYTES, "CSV table").splitlines()))
     differ = total = 0
     for k in range(max(len(rows_a), len(rows_b))):
         ra = rows_a[k] if k < len(rows_a) else []

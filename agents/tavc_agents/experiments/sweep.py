@@ -34,6 +34,7 @@ import os
 import pickle
 import re
 import signal
+import stat
 import sys
 import time
 import traceback
@@ -46,7 +47,13 @@ from typing import Any, Generic, TypeVar
 from tqdm import tqdm
 
 from tavc_agents.experiments import packs
-from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
+from tavc_agents.experiments.files import (
+    RECORD_MAX_BYTES,
+    CorruptFileError,
+    read_json,
+    read_record,
+    write_record,
+)
 from tavc_agents.experiments.folders import forget_inherited, hold_folder
 from tavc_agents.experiments.registry import REGISTRY, Allocator, make_allocator
 from tavc_agents.experiments.runner import Event, TrialResult, env_arguments, run_trial
@@ -334,18 +341,26 @@ def _run_unfinished(
     return results
 
 
-def _saved(job: J, kind: JobKind[J, R], out: Path) -> tuple[R] | None:
+def _saved(job: J, kind: JobKind[J, R], out: Path, move_aside: bool = True) -> tuple[R] | None:
     """The saved result of `job` in `out`, as a 1-tuple, if a run would resume it; None if it
-    must run (no file, or a corrupt one, which is named). A result saved with other settings is
-    a ValueError: it is never overwritten or mixed in."""
+    must run (no file, or a damaged slot, which is named in one line and, with `move_aside`,
+    moved aside by `set_aside` so that the rerun can save there). A result saved with other
+    settings is a ValueError: it is never overwritten or mixed in."""
     key = kind.key(job)
     path = result_path(out, key)
-    if not path.exists():
+    if not os.path.lexists(path):  # lexists: a dangling link in the slot is damage, not absence
         return _packed(job, kind, out)
     try:
         stored, record = kind.load(path)
     except CorruptFileError as error:
-        print(f"{error}; running {kind.unit} {key!r} again", file=sys.stderr)
+        if not move_aside:
+            print(f"{error}; not used", file=sys.stderr)
+            return None
+        aside = set_aside(path)
+        print(
+            f"{error}; moved aside to {aside.name}; running {kind.unit} {key!r} again",
+            file=sys.stderr,
+        )
         return None
     if not kind.same(record, kind.record(job)):
         raise ValueError(
@@ -356,13 +371,39 @@ def _saved(job: J, kind: JobKind[J, R], out: Path) -> tuple[R] | None:
     return (stored,)
 
 
+def set_aside(path: Path) -> Path:
+    """Rename the damaged slot `path` (whatever it is: a file, a folder, a FIFO, a link) to a
+    free `<name>.not-a-file` (anything but a regular file) or `<name>.damaged` name beside it,
+    never deleting it (it may be worth a look); return the new path. A ValueError naming it if it
+    cannot be renamed."""
+    try:
+        regular = stat.S_ISREG(path.lstat().st_mode)
+    except OSError:
+        regular = False
+    base = f"{path.name}.{'damaged' if regular else 'not-a-file'}"
+    for n in range(1000):
+        aside = path.with_name(base if n == 0 else f"{base}.{n}")
+        if os.path.lexists(aside):
+            continue
+        try:
+            os.rename(path, aside)  # a link is renamed, not followed; a folder moves whole
+        except OSError as error:
+            raise ValueError(
+                f"{path} is damaged and cannot be moved aside to {aside.name} ({error}); "
+                "allowed: a writable output folder (or remove the file and run again)"
+            ) from None
+        return aside
+    raise ValueError(f"{path} is damaged and {base}.1 to .999 are taken; remove some")
+
+
 def saved_results(jobs: Sequence[J], kind: JobKind[J, R], out_dir: str | Path) -> dict[str, R]:
     """The results of `jobs` already saved in `out_dir` (those a run would resume), by key,
-    without running anything: what an interim report of an unfinished sweep is made from."""
+    without running anything or changing the folder: what an interim report of an unfinished
+    sweep is made from (a damaged slot is named in one line and left where it is)."""
     out = Path(out_dir)
     found = {}
     for job in jobs:
-        stored = _saved(job, kind, out)
+        stored = _saved(job, kind, out, move_aside=False)
         if stored is not None:
             found[kind.key(job)] = stored[0]
     return found
@@ -640,11 +681,13 @@ def _load_trial(path: Path) -> tuple[TrialResult, dict[str, Any] | None]:
 
 
 def _save_json(result: dict[str, Any], record: dict[str, Any], path: Path) -> None:
-    write_record(path, {"record": record, "result": result})
+    # NaN is allowed in job results: some studies' results use it for "undefined" (a Q gap with
+    # no robot of a class, in the committed regime-map and passing records); infinity is not.
+    write_record(path, {"record": record, "result": result}, nan=True)
 
 
 def _load_json(path: Path) -> tuple[dict[str, Any], dict[str, Any] | None]:
-    data = read_record(path)
+    data = read_record(path, nan=True)
     try:
         return data["result"], data.get("record")
     except KeyError:
@@ -799,7 +842,9 @@ def rerun_failed(path: str | Path) -> TrialResult:
 
 
 def read_failed(path: str | Path) -> dict[str, Any]:
-    data: dict[str, Any] = json.loads(Path(path).read_text(encoding="utf-8"))
+    data = read_json(path, RECORD_MAX_BYTES, "failed-trial record")
+    if not isinstance(data, dict):
+        raise CorruptFileError(f"{path} holds {type(data).__name__}, not a failed-trial record")
     if data.get("unit") != "trial":
         raise ValueError(
             f"{path} records a failed {data.get('unit')!r}; allowed: a failed trial "

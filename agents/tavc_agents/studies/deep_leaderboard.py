@@ -20,7 +20,6 @@ The script is `benchmarks/deep_leaderboard.py`.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -32,6 +31,7 @@ import numpy as np
 
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, markdown_table
+from tavc_agents.experiments.files import read_csv, read_report
 from tavc_agents.experiments.runner import run_trial
 from tavc_agents.experiments.study import RESULTS_DIR, Outcome
 from tavc_agents.experiments.sweep import json_jobs, saved_results
@@ -298,12 +298,13 @@ def reference_scores(path: Path) -> dict[str, dict[str, float]]:
     value per hour over the evaluation seeds), from the committed references and the table
     beside them (`references.csv`)."""
     refs = references(path)
-    table = np.genfromtxt(Path(path).with_suffix(".csv"), delimiter=",", names=True, dtype=None)
+    table = list(read_csv(Path(path).with_suffix(".csv")))
     out = {}
     for name, ref in refs.items():
-        mine = table[table["scenario"] == name]
+        mine = [row for row in table if row["scenario"] == name]
         out[name] = {
-            key: normalised(float(np.mean(mine[f"{key}_per_h"])), ref) for key in ("stay", "static")
+            key: normalised(float(np.mean([float(r[f"{key}_per_h"]) for r in mine])), ref)
+            for key in ("stay", "static")
         }
     return out
 
@@ -313,7 +314,7 @@ def best_allocators(path: Path) -> dict[str, tuple[str, float]]:
     that leaderboard is committed; else nothing."""
     if not path.is_file():
         return {}
-    summary = json.loads(path.read_text())["summary"]
+    summary = read_report(path)["summary"]
     best: dict[str, tuple[str, float]] = {}
     for allocator, cells in summary.items():
         for name, cell in cells.items():

@@ -16,7 +16,6 @@ The script is `benchmarks/leaderboard.py`.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from scipy import stats
 
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, markdown_table
+from tavc_agents.experiments.files import read_report
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import TrialSpec
@@ -140,7 +140,7 @@ def iqm_ci(
 
 def references(path: Path) -> dict[str, dict[str, float]]:
     """The random and optimum value per hour of every scenario, from the committed references."""
-    summary = json.loads(Path(path).read_text())["summary"]
+    summary = read_report(path)["summary"]
     return {
         name: {"random": float(v["random_per_h"]), "optimum": float(v["optimum_per_h"])}
         for name, v in summary.items()

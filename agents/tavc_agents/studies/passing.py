@@ -22,7 +22,6 @@ The script is `benchmarks/passing.py`.
 from __future__ import annotations
 
 import itertools
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -34,6 +33,7 @@ from scipy import stats
 
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
+from tavc_agents.experiments.files import read_report
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.study import RESULTS_DIR, Outcome
 from tavc_agents.experiments.sweep import run_jobs
@@ -326,7 +326,7 @@ def run_predict(s: Settings) -> Outcome:
 def load_plan(path: Path) -> tuple[dict[str, int], Mapping[str, Any], list[Row]]:
     """The plan, settings and predicted rows of a committed prediction (`prediction.json`)."""
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = read_report(path)
         summary = data["summary"]
         return dict(summary["plan"]), summary["settings"], list(summary["conditions"])
     except (OSError, ValueError, KeyError, TypeError) as error:

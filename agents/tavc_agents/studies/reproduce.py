@@ -13,6 +13,7 @@ leaves saved results reproducible. Trials packed into their folder's `pack.jsonl
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -22,6 +23,7 @@ from typing import Annotated, Any
 import numpy as np
 import tyro
 
+from tavc_agents.experiments.files import RECORD_MAX_BYTES, read_bytes
 from tavc_agents.experiments.packs import read_saved, saved_paths
 from tavc_agents.experiments.runner import Event, TrialResult
 from tavc_agents.experiments.study import Outcome
@@ -70,10 +72,9 @@ class Settings:
 
 def _compact_record(path: str) -> bool:
     """Whether `path` holds a study's compact record ({"record": ..., "result": ...})."""
-    if not Path(path).exists():  # packed
+    if not os.path.lexists(path):  # packed
         return list(read_saved(path))[:1] == ["record"]
-    with open(path, "rb") as f:
-        return f.read(11) == b'{"record": '
+    return read_bytes(path, RECORD_MAX_BYTES, "saved record")[:11] == b'{"record": '
 
 
 def comparable(result: TrialResult, fields: set[str]) -> Any:

@@ -7,7 +7,6 @@ A study whose `trials.csv` rows carry what rebuilds their trial (seed, condition
 
 from __future__ import annotations
 
-import csv
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -16,14 +15,14 @@ from typing import Any
 import numpy as np
 
 from tavc_agents.analysis.reports import write_csv
+from tavc_agents.experiments.files import read_csv
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TrialSpec, run_sweep
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
     """The rows of a CSV, as text."""
-    with open(path, newline="", encoding="utf-8") as fh:
-        return list(csv.DictReader(fh))
+    return list(read_csv(path))
 
 
 def sample_rows(path: Path, sample: int, seed: int) -> list[dict[str, str]]:

@@ -23,7 +23,6 @@ on the high-value circuit (the paper's homogeneous result: 3 most frequent under
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import json
 import math
@@ -39,7 +38,7 @@ from tavc_agents.analysis.measures import TrialMeasures, measure
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, mean_sd, ratio_ci, welch
-from tavc_agents.experiments.files import atomic_path
+from tavc_agents.experiments.files import atomic_path, read_csv
 from tavc_agents.experiments.packs import is_saved
 from tavc_agents.experiments.provenance import PROVENANCE_FILE
 from tavc_agents.experiments.study import (
@@ -634,5 +633,4 @@ def agreement(out: Path, reference: Path) -> list[str]:
 
 
 def _rows(path: Path) -> dict[str, dict[str, str]]:
-    with path.open(newline="", encoding="utf-8") as f:
-        return {row["state"]: row for row in csv.DictReader(f)}
+    return {row["state"]: row for row in read_csv(path)}

@@ -23,8 +23,6 @@ The script is `benchmarks/twin_curve.py`.
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 import time
 from collections.abc import Mapping, Sequence
@@ -39,6 +37,7 @@ from tavc_agents.analysis.plots import Curve, PhysicsPoint, differentiation_figu
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.analysis.synthetic_tables import Family, reach, with_elasticity
+from tavc_agents.experiments.files import read_csv, read_report
 from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs
 from tavc_agents.experiments.twin_batch import run_batch
@@ -277,8 +276,7 @@ def break_even(
 # -- the figure's other sources -----------------------------------------------------------------
 def physics_points(regime_map_dir: Path) -> list[PhysicsPoint]:
     """The regime map's physics cells of `CONDITIONS`, each at its arena's measured e."""
-    with (Path(regime_map_dir) / "regime_map.csv").open(encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
+    rows = list(read_csv(Path(regime_map_dir) / "regime_map.csv"))
     return [
         PhysicsPoint(
             r["condition"],
@@ -301,7 +299,7 @@ def passing_points(prediction: Path, result: Path) -> tuple[list[PhysicsPoint], 
     is not there yet), at the e the prediction measured."""
     if not Path(prediction).is_file():
         return [], []
-    summary = json.loads(Path(prediction).read_text(encoding="utf-8"))["summary"]
+    summary = read_report(prediction)["summary"]
     e = summary["elasticity"]
 
     def as_points(rows: Sequence[Mapping[str, Any]], n_key: str) -> list[PhysicsPoint]:
@@ -324,8 +322,7 @@ def passing_points(prediction: Path, result: Path) -> tuple[list[PhysicsPoint], 
     predicted = as_points(summary["conditions"], "twin_trials")
     if not Path(result).is_file():
         return predicted, []
-    with Path(result).open(encoding="utf-8") as f:
-        return predicted, as_points(list(csv.DictReader(f)), "trials")
+    return predicted, as_points(list(read_csv(result)), "trials")
 
 
 def curves(rows: Sequence[Row]) -> list[Curve]:
@@ -472,11 +469,10 @@ def read_rows(path: Path) -> list[Row]:
             f"figure_only: there is no report {str(path)!r} to redraw from; allowed: the output "
             "folder of a finished run (--update-reference, --out or --resume)"
         )
-    with path.open(encoding="utf-8") as f:
-        return [
-            {k: (v if k == "condition" else float(v) if v else math.nan) for k, v in r.items()}
-            for r in csv.DictReader(f)
-        ]
+    return [
+        {k: (v if k == "condition" else float(v) if v else math.nan) for k, v in r.items()}
+        for r in read_csv(path)
+    ]
 
 
 def run(settings: Settings) -> Outcome:

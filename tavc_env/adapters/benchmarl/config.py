@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from tavc_env import scenarios
+from tavc_env._files import MIB, CorruptFileError, first_not_finite, read_text
 from tavc_env._validation import is_integer, require
 from tavc_env.adapters import checked_reward_scale
 from tavc_env.env import ArenaEnv, parallel_env
@@ -26,6 +27,7 @@ ENV_NAME = "tavc"
 # finds `task/tavc/<task>.yaml` when this folder is on its search path.
 CONF_DIR = Path(__file__).resolve().parent / "conf"
 TASK_DIR = CONF_DIR / "task" / ENV_NAME
+TASK_MAX_BYTES = 1 * MIB  # a shipped task file is well under 1 KiB
 # The keys of a task's YAML that are not `tavc_env.parallel_env` keywords
 TASK_KEYS = ("max_steps", "reward_scale")
 HYDRA_KEYS = ("defaults",)  # Hydra's composition list, read by Hydra only
@@ -100,9 +102,17 @@ def load_task_config(name: str, path: str | Path | None = None) -> dict[str, Any
     if path is None:
         require(name in names, "task", name, f"one of {list(names)} (the YAML files in {TASK_DIR})")
         path = TASK_DIR / f"{name}.yaml"
-    with open(path, encoding="utf-8") as file:
-        loaded = yaml.safe_load(file)
+    text = read_text(path, TASK_MAX_BYTES, "BenchMARL task YAML")
+    try:
+        loaded = yaml.safe_load(text)
+    except (yaml.YAMLError, RecursionError) as error:
+        raise CorruptFileError(
+            f"{path} is not valid YAML ({' '.join(str(error).split())}); allowed: a task YAML "
+            "file like the shipped ones"
+        ) from None
     where = f"task {ENV_NAME}/{name} ({path})"
+    not_finite = first_not_finite(loaded)
+    require(not_finite is None, f"{where} value at", not_finite, "finite numbers only")
     require(isinstance(loaded, dict), where, type(loaded).__name__, "a YAML mapping")
     config = {k: v for k, v in loaded.items() if k not in HYDRA_KEYS}
     TavcTaskConfig.of(config, where)

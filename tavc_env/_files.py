@@ -1,0 +1,199 @@
+"""Reading files safely: only a regular file, never blocking, never more than a bound.
+
+Every file the package reads (stored trials, provenance, manifests, reports, models, task YAML,
+network files) goes through `read_bytes`, `read_text` or `read_json`. A path is read only if it
+is a regular file of at most `limit` bytes: it is looked at with `lstat` (a symbolic link, even
+one to a regular file, is refused, so a run folder cannot be made to read elsewhere), opened with
+`O_NOFOLLOW | O_NONBLOCK` (a FIFO swapped in after the look neither blocks the open nor is
+followed), the open descriptor is checked again with `fstat` (regular, size within the bound),
+and at most `limit + 1` bytes are read (a file growing past its bound is caught too). Anything
+else (a folder, a FIFO, a device such as `/dev/zero`, a socket, a link, a file too large or
+unreadable, text that is not UTF-8, JSON that is garbled, nested too deeply, holds a number
+Python refuses to convert or a value that is not finite) raises `CorruptFileError`, a ValueError
+naming the file and what it is, in one line.
+
+This module sits at the lowest layer, so that the env's own readers (the BenchMARL task files)
+can use it; `tavc_agents.experiments.files` re-exports it with the record format on top.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import stat
+import sys
+from pathlib import Path
+from typing import Any
+
+KIB = 1024
+MIB = 1024 * KIB
+
+
+class CorruptFileError(ValueError):
+    """A file that cannot be trusted: not a regular file, too large, unreadable, truncated, not
+    JSON, not finite, edited, of the wrong schema. The message names the file, in one line."""
+
+
+def kind_of(mode: int) -> str:
+    """What a file of `st_mode` `mode` is, in words ("a FIFO", "a folder", ...)."""
+    for test, name in (
+        (stat.S_ISLNK, "a symbolic link"),
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISREG, "a regular file"),
+    ):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _refuse(path: Path, what: str, why: str, allowed: str = "") -> CorruptFileError:
+    return CorruptFileError(
+        f"{path} {why}; allowed: {allowed or f'a {what} as this package writes it'}"
+    )
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split())
+
+
+def read_bytes(path: str | Path, limit: int, what: str = "file") -> bytes:
+    """The bytes of the regular file `path` (at most `limit` bytes; `what` it should be, for the
+    message): see the module for what is refused."""
+    path = Path(path)
+    try:
+        mode = path.lstat().st_mode
+    except FileNotFoundError:
+        raise _refuse(path, what, "does not exist") from None
+    except OSError as error:
+        raise _refuse(path, what, f"cannot be looked at ({_one_line(error)})") from None
+    if not stat.S_ISREG(mode):
+        raise _refuse(
+            path,
+            what,
+            f"is {kind_of(mode)}, not a regular file",
+            f"a {what} that is a regular file",
+        )
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    try:
+        fd = os.open(path, flags | getattr(os, "O_CLOEXEC", 0))
+    except OSError as error:  # swapped for a link after the look (ELOOP), unreadable, ...
+        raise _refuse(path, what, f"cannot be opened ({_one_line(error)})") from None
+    with os.fdopen(fd, "rb", buffering=0) as file:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):  # swapped after the look
+            raise _refuse(
+                path,
+                what,
+                f"is {kind_of(info.st_mode)}, not a regular file",
+                f"a {what} that is a regular file",
+            )
+        if info.st_size > limit:
+            raise _refuse(
+                path,
+                what,
+                f"holds {info.st_size} bytes, more than the {limit} allowed",
+                f"a {what} of at most {limit} bytes",
+            )
+        chunks: list[bytes] = []
+        size = 0
+        try:
+            while size <= limit:  # a file growing while read stops one byte past its bound
+                chunk = file.read(limit + 1 - size)
+                if not chunk:
+                    break
+                chunks.append(chunk)
+                size += len(chunk)
+        except OSError as error:
+            raise _refuse(path, what, f"cannot be read ({_one_line(error)})") from None
+    if size > limit:
+        raise _refuse(
+            path,
+            what,
+            f"grew past the {limit} bytes allowed while it was read",
+            f"a {what} of at most {limit} bytes",
+        )
+    return b"".join(chunks)
+
+
+def read_text(path: str | Path, limit: int, what: str = "file") -> str:
+    """The UTF-8 text of the regular file `path` (see `read_bytes`)."""
+    raw = read_bytes(path, limit, what)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise _refuse(Path(path), what, f"is not UTF-8 text ({error}): garbled") from None
+
+
+class _NotFinite(ValueError):
+    """A JSON constant (NaN, Infinity, -Infinity) where only finite numbers are allowed."""
+
+
+def _no_constant(name: str) -> Any:
+    raise _NotFinite(name)
+
+
+def _nan_only(name: str) -> float:
+    if name != "NaN":
+        raise _NotFinite(name)
+    return math.nan
+
+
+def parse_json(path: str | Path, raw: bytes | str, what: str = "file", nan: bool = False) -> Any:
+    """`raw` (the content of `path`) decoded as JSON whose numbers are all finite (NaN too is
+    allowed with `nan`: some records use it for "undefined"); a `CorruptFileError` naming `path`
+    otherwise."""
+    path = Path(path)
+    try:
+        data = json.loads(raw, parse_constant=_no_constant if not nan else _nan_only)
+        where = first_not_finite(data, nan)  # a literal too large for a float reads as infinity
+    except _NotFinite as error:
+        raise _refuse(path, what, f"holds the value {error} (not a finite number)") from None
+    except RecursionError:
+        # no file this package writes comes near the limit: a damaged or planted file
+        raise _refuse(
+            path, what, f"is nested deeper than the recursion limit ({sys.getrecursionlimit()})"
+        ) from None
+    except UnicodeDecodeError as error:
+        raise _refuse(path, what, f"is not UTF-8 text ({error}): garbled") from None
+    except ValueError as error:  # not JSON, or an integer too long to convert
+        if "integer string conversion" in str(error):  # CPython's int-string limit
+            raise _refuse(
+                path, what, f"holds an integer too long to convert ({_one_line(error)})"
+            ) from None
+        raise _refuse(
+            path, what, f"is not valid JSON ({_one_line(error)}): truncated or garbled"
+        ) from None
+    if where is not None:
+        raise _refuse(path, what, f"holds a value that is not a finite number at {where}")
+    return data
+
+
+def first_not_finite(data: Any, nan: bool = False, where: str = "") -> str | None:
+    """Where in `data` (JSON-like) the first float that is not finite is (`[k]` and `.key`
+    steps; NaN passes with `nan`), or None. Recursive: call it on data that was decoded (or will
+    be encoded) within the recursion limit."""
+    if isinstance(data, float):
+        if math.isfinite(data) or (nan and math.isnan(data)):
+            return None
+        return where or "the top"
+    if isinstance(data, dict):
+        items: Any = ((f"{where}.{k}", v) for k, v in data.items())
+    elif isinstance(data, (list, tuple)):
+        items = ((f"{where}[{k}]", v) for k, v in enumerate(data))
+    else:
+        return None
+    for at, value in items:
+        found = first_not_finite(value, nan, at)
+        if found is not None:
+            return found
+    return None
+
+
+def read_json(path: str | Path, limit: int, what: str = "file", nan: bool = False) -> Any:
+    """The JSON in the regular file `path`, its numbers finite (see `read_bytes`, `parse_json`)."""
+    return parse_json(path, read_bytes(path, limit, what), what, nan)
