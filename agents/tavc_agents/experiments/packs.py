@@ -38,16 +38,23 @@ import numpy as np
 
 from tavc_agents.experiments.files import (
     MANIFEST,
+    MANIFEST_MAX_BYTES,
+    MIB,
     SCHEMA_VERSION,
     CorruptFileError,
     atomic_path,
     manifest_entry,
+    read_bytes,
     read_record,
+    read_text,
     write_text,
 )
+from tavc_agents.experiments.folders import hold_folder
 from tavc_agents.experiments.runner import TrialResult
+from tavc_env._files import parse_json
 
 PACK = "pack.jsonl"
+PACK_MAX_BYTES = 1024 * MIB  # the largest committed pack is about 6 MiB
 _LINE = re.compile(r'^(\{"key":.*),"sha256":"([0-9a-f]{64})"\}$', re.DOTALL)
 _FAILED = ".failed.json"  # a sweep's record of a job that raised: not a result
 
@@ -82,9 +89,10 @@ def _checked_line(text: str) -> tuple[str, dict[str, Any]] | str:
     if hashlib.sha256(body.encode()).hexdigest() != found.group(2):
         return "does not match its checksum: damaged or edited after it was packed"
     try:
-        parsed = json.loads(body)
-    except ValueError as error:  # pragma: no cover - a checksum that matches garbled text
-        return f"is not valid JSON ({error})"
+        # NaN passes, as in the job records packed (their "undefined"); infinity does not
+        parsed = parse_json(PACK, body, "pack line", nan=True)
+    except CorruptFileError as error:  # a checksum that matches garbled or non-finite text
+        return f"is not a valid record ({error})"
     if not isinstance(parsed, dict) or list(parsed) != ["key", "schema", "data"]:
         return "does not hold key, schema and data"
     if parsed["schema"] != SCHEMA_VERSION:
@@ -147,7 +155,7 @@ def _index(path: Path) -> _Index:
 
 
 def _read_index(path: Path) -> _Index:
-    raw = path.read_bytes()
+    raw = read_bytes(path, PACK_MAX_BYTES, "trial pack")
     lines: dict[str, tuple[int, str]] = {}
     damaged: dict[str | None, str] = {}
     chunks = raw.split(b"\n")
@@ -295,7 +303,7 @@ def _all_records(folder: Path) -> dict[str, dict[str, Any]]:
                 assert data is not None
                 records[key] = data
     for key, path in loose.items():
-        records[key] = read_record(path)
+        records[key] = read_record(path, nan=True)  # job records keep NaN for "undefined"
     return {key: records[key] for key in sorted(records)}
 
 
@@ -366,6 +374,13 @@ def pack_folder(folder: str | Path) -> Packed:
     (a trial run again after its line was damaged). Damage anywhere is a `CorruptFileError`
     naming it, before anything is written."""
     folder = Path(folder)
+    if not folder.is_dir():  # checked before the lock, which would make the folder
+        raise ValueError(f"folder = {str(folder)!r} is invalid; allowed: a folder of trials")
+    with hold_folder(folder):  # no sweep writes the folder while its files move
+        return _pack_held(folder)
+
+
+def _pack_held(folder: Path) -> Packed:
     records = _all_records(folder)  # checks the folder, the pack and every loose file first
     loose = _loose(folder)
     pack = folder / PACK
@@ -404,11 +419,11 @@ def _write_manifest(folder: Path, pack: Path) -> None:
     manifest = folder / MANIFEST
     entries: dict[str, str] = {}
     if manifest.exists():
-        for line in manifest.read_text(encoding="utf-8").splitlines():
+        for line in read_text(manifest, MANIFEST_MAX_BYTES, "checksum manifest").splitlines():
             digest, _, name = line.partition("  ")
             if name and (folder / name).exists():
                 entries[name] = digest
-    entries[pack.name] = hashlib.sha256(pack.read_bytes()).hexdigest()
+    entries[pack.name] = hashlib.sha256(read_bytes(pack, PACK_MAX_BYTES, "trial pack")).hexdigest()
     write_text(manifest, "".join(f"{entries[n]}  {n}\n" for n in sorted(entries)))
 
 

@@ -12,6 +12,7 @@ import pytest
 
 from tavc_agents.experiments import packs
 from tavc_agents.experiments.files import MANIFEST, CorruptFileError
+from tavc_agents.experiments.folders import LOCK_FILE
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import json_jobs, run_jobs
 from tavc_agents.studies.reproduce import Settings as ReproduceSettings
@@ -56,7 +57,8 @@ def _same_text(a: object, b: object) -> bool:
 
 
 def test_packing_leaves_one_checked_file_and_the_same_records(packed: Path) -> None:
-    assert sorted(p.name for p in packed.iterdir()) == [MANIFEST, packs.PACK]
+    # besides the lock file of the sweep and of the packing (folders.LOCK_FILE)
+    assert sorted(p.name for p in packed.iterdir()) == [LOCK_FILE, MANIFEST, packs.PACK]
     lines = (packed / packs.PACK).read_text().splitlines()
     assert [json.loads(line)["key"] for line in lines] == [f"job{k}" for k in range(5)]
     assert (packed / MANIFEST).read_text().endswith(f"  {packs.PACK}\n")
