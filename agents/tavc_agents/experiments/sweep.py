@@ -362,12 +362,7 @@ def _saved(job: J, kind: JobKind[J, R], out: Path, move_aside: bool = True) -> t
             file=sys.stderr,
         )
         return None
-    if not kind.same(record, kind.record(job)):
-        raise ValueError(
-            f"{path} holds {kind.unit} {key!r} run with different settings "
-            f"({record or 'unknown'}); allowed: the same settings to resume, or another "
-            "output folder (or delete the file) for new ones"
-        )
+    _refuse_other_settings(job, kind, record, str(path), " (or delete the file)")
     return (stored,)
 
 
@@ -423,13 +418,21 @@ def _packed(job: J, kind: JobKind[J, R], out: Path) -> tuple[R] | None:
     except CorruptFileError as error:
         print(f"{error}; running {kind.unit} {key!r} again", file=sys.stderr)
         return None
+    _refuse_other_settings(job, kind, record, str(found[1]))
+    return (stored,)
+
+
+def _refuse_other_settings(
+    job: J, kind: JobKind[J, R], record: dict[str, Any] | None, where: str, remedy: str = ""
+) -> None:
+    """A ValueError if the result of `job` stored at `where` was run with other settings: it is
+    never overwritten or mixed in."""
     if not kind.same(record, kind.record(job)):
         raise ValueError(
-            f"{found[1]} holds {kind.unit} {key!r} run with different settings "
+            f"{where} holds {kind.unit} {kind.key(job)!r} run with different settings "
             f"({record or 'unknown'}); allowed: the same settings to resume, or another "
-            "output folder for new ones"
+            f"output folder{remedy} for new ones"
         )
-    return (stored,)
 
 
 @dataclass(frozen=True)
