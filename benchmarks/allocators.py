@@ -10,6 +10,7 @@ The study is tavc_agents.studies.allocators.
 
     python benchmarks/allocators.py
     python benchmarks/allocators.py --quick       # a smoke run
+    python benchmarks/allocators.py --update-reference --figure-only   # redraw the PNG, run nothing
 """
 
 from __future__ import annotations

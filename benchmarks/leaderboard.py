@@ -10,6 +10,7 @@ benchmarks/results/leaderboard/; `--resume RUN_DIR` continues an interrupted run
 
     python benchmarks/leaderboard.py            # 8 allocators x 7 scenarios x 20 seeds of 8 h
     python benchmarks/leaderboard.py --quick    # smoke run
+    python benchmarks/leaderboard.py --update-reference --figure-only   # redraw the PNG, run nothing
 """
 
 from __future__ import annotations

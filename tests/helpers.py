@@ -329,7 +329,8 @@ def figure_problems(figure: Any) -> list[str]:
             if not (ax.get_ylabel() or ax.get_xlabel()):
                 problems.append(f"{name}: a colour bar without a label")
             continue
-        if not ax.get_ylabel() and not ax.get_yticklabels():
+        beside = ax.get_shared_y_axes().get_siblings(ax)  # (panels side by side on one y axis)
+        if not any(a.get_ylabel() or a.get_yticklabels() for a in beside):
             problems.append(f"{name}: no y label")
         shared = ax.get_shared_x_axes().get_siblings(ax)  # (panels stacked on one time axis)
         if not any(
@@ -350,3 +351,36 @@ def figure_problems(figure: Any) -> list[str]:
         if len(labelled) > 1 and ax.get_legend() is None and figure.legends == []:
             problems.append(f"{name}: {len(labelled)} labelled series and no legend")
     return problems
+
+
+def png_size(path: Any) -> tuple[int, int]:
+    """The width and height in pixels of the PNG at `path` (from its header)."""
+    head = open(path, "rb").read(24)  # noqa: SIM115
+    assert head[:8] == b"\x89PNG\r\n\x1a\n", f"{path} is not a PNG"
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
+def check_figure_only(
+    run: Callable[[Any], Any], settings: Callable[..., Any], committed: Any, figure: str, tmp: Any
+) -> tuple[int, int]:
+    """A study's `--figure-only` run (`run(settings(out=..., figure_only=True))`) on a copy of its
+    `committed` results folder, without the figure: it writes the figure and nothing else (every
+    other file byte for byte as it was), and in a folder without a report it refuses, naming the
+    missing file, before drawing anything. Returns the figure's size in pixels."""
+    import shutil
+    from pathlib import Path
+
+    out = Path(tmp) / "run"
+    shutil.copytree(committed, out, ignore=shutil.ignore_patterns(figure))
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    outcome = run(settings(out=out, figure_only=True))
+    assert outcome.written == [out / figure]
+    after = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(after) == {*before, figure}
+    assert all(after[name] == data for name, data in before.items())
+    empty = Path(tmp) / "empty"
+    empty.mkdir()
+    with pytest.raises(ValueError, match=r"^figure_only: there is no report '.*empty/"):
+        run(settings(out=empty, figure_only=True))
+    assert list(empty.iterdir()) == []
+    return png_size(out / figure)

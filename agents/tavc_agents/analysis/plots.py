@@ -43,7 +43,7 @@ def allocation_timeline(
     from_h: float | None = None,
     to_h: float | None = None,
 ) -> None:
-    """Which circuit each robot served over time, one panel per trial (its label on the left);
+    """Which circuit each robot served over time, one panel per trial (titled with its label);
     broken periods dark, recorded events (breakdown, repair, value change) dashed."""
     from matplotlib.patches import Rectangle
 
@@ -81,7 +81,8 @@ def allocation_timeline(
             [f"{i} {c}" for i, c in enumerate(r.speed_classes)],
             fontsize=7,
         )
-        ax.set_ylabel(label, rotation=0, ha="right", va="center", fontsize=8)
+        ax.set_ylabel("robot", fontsize=8)  # the rows are robots; the trial names the panel
+        ax.set_title(label, loc="left", fontsize=8)
     np.atleast_1d(axes)[-1].set_xlabel("simulated hours (dashed: recorded events)")
     handles = [
         Rectangle((0, 0), 1, 1, color=CIRCUIT_COLOURS[c % len(CIRCUIT_COLOURS)])

@@ -24,6 +24,8 @@ Outputs in `benchmarks/results/allocators/` (the committed reference; a run writ
 `trials.csv` (every trial's measures, with the preset, allocator and seed that rebuild it),
 `allocators.png` (bar plot). Trials are kept under `cache/` as they finish (not committed), so an
 interrupted run resumes; `reproduce_rows` re-runs a sample of them against `trials.csv`.
+`--figure-only` redraws `allocators.png` from a finished run's `allocators.csv` without running
+a trial or writing anything else.
 
     python benchmarks/allocators.py
     python benchmarks/allocators.py --quick       # a smoke run
@@ -49,13 +51,14 @@ from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
 from tavc_agents.model import CompletionModel, SpeedClasses, load_model, missing_model
-from tavc_agents.studies.common import at_least, positive, refuse_invalid
-from tavc_agents.studies.row_check import compare_rows, run_fresh, sample_rows
+from tavc_agents.studies.common import at_least, positive, redraw, redraw_source, refuse_invalid
+from tavc_agents.studies.row_check import compare_rows, read_rows, run_fresh, sample_rows
 from tavc_env import make_config
 from tavc_env._validation import is_number
 
 PresetName = Literal["dahl2004", "three_circuits_three_classes"]
 PRESETS: tuple[PresetName, ...] = ("dahl2004", "three_circuits_three_classes")
+FIGURE = "allocators.png"
 NETWORK_RUNS = ("sb3_maskable_ppo", "torchrl_mappo", "rllib_ppo")
 SETTLE_BAND = 0.03
 SETTLE_WINDOW_H = 2
@@ -99,6 +102,8 @@ class Settings(StudySettings):
     plugins: tuple[str, ...] = ()
     """more allocators by name, with their default parameters (and the preset's model if they
     take `model`): your own, from a `tavc.allocators` entry point or registered at run time"""
+    figure_only: bool = False
+    """run nothing: redraw allocators.png from the allocators.csv already in the output folder"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -227,8 +232,12 @@ def specs(settings: Settings, by_preset: Mapping[str, CompletionModel]) -> list[
 
 
 def run(settings: Settings) -> Outcome:
-    """Run (or resume) every trial, then write the summary, the per-trial table and the plot."""
+    """Run (or resume) every trial, then write the summary, the per-trial table and the plot;
+    with `figure_only`, only redraw the plot from the summary in the output folder."""
     out = settings.out_dir()
+    if settings.figure_only:
+        saved = read_rows(redraw_source(out / "allocators.csv"))
+        return redraw(out, FIGURE, lambda path: plot(saved, path))
     by_preset = models(settings)
     trial_specs = specs(settings, by_preset)
     results, provenance = settings.run_trials(trial_specs, "cache")
@@ -252,7 +261,7 @@ def run(settings: Settings) -> Outcome:
         body,
         summary,
         {"rows": summary},
-        figures=[("allocators.png", lambda path: plot(summary, path))],
+        figures=[(FIGURE, lambda path: plot(summary, path))],
     )
     written = [out / "trials.csv", *report.write(out, provenance)]
     return Outcome(out, written, body)
@@ -382,24 +391,30 @@ def settle_text(row: Mapping[str, Any]) -> str:
 
 def plot(summary: Sequence[Mapping[str, Any]], path: Path) -> None:
     """Delivered value and the allocation's model value, as fractions of the optimum, one panel
-    per preset."""
+    per preset. The rows' numbers may be text (a written `allocators.csv`, for `--figure-only`)."""
+
+    def number(row: Mapping[str, Any], key: str) -> float:
+        return float(row[key])
 
     presets = list(dict.fromkeys(r["preset"] for r in summary))
-    fig, axes = subplots(1, len(presets), figsize=(6 * len(presets), 4.2), sharey=True)
+    fig, axes = subplots(1, len(presets), figsize=(6 * len(presets), 5.0), sharey=True)
     for ax, preset in zip(np.atleast_1d(axes), presets):
         rows = [r for r in summary if r["preset"] == preset]
         x = np.arange(len(rows))
-        mean = np.array([r["fraction_of_optimum"] for r in rows])
+        mean = np.array([number(r, "fraction_of_optimum") for r in rows])
         err = np.array(
             [
-                [m - r["fraction_of_optimum_low"], r["fraction_of_optimum_high"] - m]
+                [
+                    m - number(r, "fraction_of_optimum_low"),
+                    number(r, "fraction_of_optimum_high") - m,
+                ]
                 for m, r in zip(mean, rows)
             ]
         ).T
         ax.bar(x, mean, yerr=err, capsize=3, color="tab:blue", alpha=0.8, label="delivered")
         ax.plot(
             x,
-            [r["allocation_value_fraction"] for r in rows],
+            [number(r, "allocation_value_fraction") for r in rows],
             "k_",
             markersize=18,
             label="model value of the allocation",
@@ -408,9 +423,12 @@ def plot(summary: Sequence[Mapping[str, Any]], path: Path) -> None:
         ax.axhline(1.0, color="grey", lw=0.8, ls="--")
         ax.set_title(preset)
         ax.set_ylim(0.0, 1.05)
-    np.atleast_1d(axes)[0].set_ylabel("value per robot per 10 s / model optimum")
-    np.atleast_1d(axes)[0].legend(loc="lower left", fontsize=8)
-    fig.tight_layout()
+    # two short lines: one long line was longer than the axis and was cut off at both ends
+    np.atleast_1d(axes)[0].set_ylabel("fraction of the model optimum\n(value per robot per 10 s)")
+    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
+    # above the panels, where it hides no bar
+    fig.legend(handles, labels, loc="upper center", ncol=len(labels), fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.94))
     fig.savefig(path, dpi=120, format="png")
 
 

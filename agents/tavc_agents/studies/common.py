@@ -1,17 +1,19 @@
 """What studies share beyond the study contract (`tavc_agents.experiments.study`, whose names are
-also importable from here): checks of their settings, comma-separated choices, and `KEY=VALUE`
-arena overrides.
+also importable from here): checks of their settings, comma-separated choices, `KEY=VALUE`
+arena overrides, and the `--figure-only` redraw of a finished run's figure.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Collection, Sequence
+from collections.abc import Callable, Collection, Sequence
+from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
 import tyro
 
+from tavc_agents.experiments.files import atomic_path
 from tavc_agents.experiments.study import (
     RESULTS_DIR,
     RUNS_DIR,
@@ -43,6 +45,8 @@ __all__ = [
     "parse_settings",
     "positive",
     "recorded_settings",
+    "redraw",
+    "redraw_source",
     "refuse_invalid",
     "replace",
     "run_study",
@@ -113,3 +117,23 @@ S = TypeVar("S")
 def replace(settings: S, **changes: Any) -> S:
     """`settings` with some fields changed (validated again)."""
     return dataclasses.replace(settings, **changes)  # type: ignore[type-var]
+
+
+def redraw_source(path: Path) -> Path:
+    """`path`, the report file a `--figure-only` run redraws its figure from; a ValueError naming
+    it when it is not there (such a run computes nothing, so it needs a finished run's report)."""
+    if not Path(path).is_file():
+        raise ValueError(
+            f"figure_only: there is no report {str(path)!r} to redraw from; allowed: the output "
+            "folder of a finished run (--update-reference, --out or --resume)"
+        )
+    return Path(path)
+
+
+def redraw(out: Path, figure: str, draw: Callable[[Path], None]) -> Outcome:
+    """A `--figure-only` run: draw the figure `figure` into `out` with `draw` (replacing it whole,
+    or not at all on an error) and write nothing else: the report it reads stays as it was."""
+    with atomic_path(Path(out) / figure) as tmp:
+        draw(tmp)
+    text = f"Redrew {figure} from the report in {out}/ (nothing run; no other file written)."
+    return Outcome(Path(out), [Path(out) / figure], text)

@@ -11,11 +11,14 @@ stratified bootstrap (seeds resampled within each scenario), as rliable computes
 within each episode, from nothing: their score includes their learning. Deep learners trained
 offline are evaluated on the same seeds by their own scripts and added to the same table.
 
+`--figure-only` redraws `leaderboard.png` from a finished run's `leaderboard.json` (the table's
+IQMs and intervals as reported) without running an episode or writing anything else.
 The script is `benchmarks/leaderboard.py`.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,11 +35,12 @@ from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import TrialSpec
 from tavc_agents.model import load_model
 from tavc_agents.studies.allocators import allocators
-from tavc_agents.studies.common import at_least, refuse_invalid
+from tavc_agents.studies.common import at_least, redraw, redraw_source, refuse_invalid
 from tavc_agents.studies.scenarios import EvaluationSettings, value_per_hour
 from tavc_env.scenarios import SCENARIOS
 
 FIGURE = "leaderboard.png"
+PANELS_PER_ROW = 4  # eight panels in two rows stay readable at a page's width
 Row = dict[str, Any]
 
 
@@ -80,6 +84,8 @@ class Settings(EvaluationSettings, ScoredSettings):
 
     quick: bool = False
     """smoke run: 2 seeds, 0.5-h episodes, 200 resamples"""
+    figure_only: bool = False
+    """run nothing: redraw leaderboard.png from the leaderboard.json already in the output folder"""
 
 
 def specs(s: Settings) -> list[TrialSpec]:
@@ -188,7 +194,7 @@ def report(s: Settings, rows: list[Row]) -> Report:
             key: {"iqm": v[0], "ci": [v[1], v[2]]}
             for key, v in ((k, cells[(allocator, k)]) for k in (*s.scenarios, "suite"))
         }
-    order = sorted(names, key=lambda a: -cells[(a, "suite")][0])
+    order = ranked(names, cells)
 
     def cell(v: tuple[float, float, float]) -> str:
         return f"{v[0]:.2f} [{v[1]:.2f}, {v[2]:.2f}]"
@@ -213,19 +219,45 @@ def report(s: Settings, rows: list[Row]) -> Report:
     return rep
 
 
-def draw(
-    path: Path,
-    order: Sequence[str],
-    scenarios: Sequence[str],
-    cells: Mapping[tuple[str, str], tuple[float, float, float]],
-) -> None:
-    """One panel per scenario and one for the suite: each allocator's IQM with its interval."""
+Cells = Mapping[tuple[str, str], tuple[float, float, float]]
+"""(allocator, scenario or "suite") -> IQM, interval low, interval high"""
+
+
+def ranked(names: Sequence[str], cells: Cells) -> list[str]:
+    """The allocators, best suite IQM first (ties in `names`' order)."""
+    return sorted(names, key=lambda a: -cells[(a, "suite")][0])
+
+
+def cells_of(summary: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> tuple[list[str], Cells]:
+    """The scenarios and the cells of a written report's summary (`leaderboard.json`), for
+    `--figure-only`: the numbers as the table reports them, nothing recomputed."""
+    cells = {
+        (allocator, key): (float(v["iqm"]), float(v["ci"][0]), float(v["ci"][1]))
+        for allocator, entry in summary.items()
+        for key, v in entry.items()
+    }
+    scenarios = [key for key in next(iter(summary.values())) if key != "suite"]
+    return scenarios, cells
+
+
+def draw(path: Path, order: Sequence[str], scenarios: Sequence[str], cells: Cells) -> None:
+    """One panel per scenario and one for the suite, `PANELS_PER_ROW` to a row: each allocator's
+    IQM with its interval."""
     keys = [*scenarios, "suite"]
+    ncols = min(PANELS_PER_ROW, len(keys))
+    nrows = math.ceil(len(keys) / ncols)
     fig, axes = subplots(
-        1, len(keys), figsize=(2.2 * len(keys), 0.35 * len(order) + 1.5), sharey=True
+        nrows,
+        ncols,
+        figsize=(2.1 * ncols + 1.4, nrows * (0.28 * len(order) + 1.1) + 0.4),
+        sharey=True,
+        squeeze=False,
     )
     y = np.arange(len(order))
-    for ax, key in zip(np.atleast_1d(axes), keys):
+    panels = axes.ravel()
+    for ax in panels[len(keys) :]:  # a last row left short
+        ax.set_visible(False)
+    for k, (ax, key) in enumerate(zip(panels, keys)):
         values = np.array([cells[(a, key)] for a in order])
         ax.errorbar(
             values[:, 0],
@@ -236,21 +268,30 @@ def draw(
         )
         ax.axvline(0.0, color="grey", lw=0.5)
         ax.axvline(1.0, color="grey", lw=0.5, ls="--")
-        ax.set_title(key if key == "suite" else SCENARIOS[key].id.removeprefix("tavc/"), fontsize=8)
-        ax.set_xlabel("IQM score", fontsize=8)
-        ax.set_ylabel("allocator", fontsize=8)
-    first = np.atleast_1d(axes)[0]
-    first.set_yticks(y)
-    first.set_yticklabels(order, fontsize=8)
+        title = "suite" if key == "suite" else SCENARIOS[key].id.removeprefix("tavc/")
+        ax.set_title(title, fontsize=10)
+        ax.tick_params(labelsize=9)
+        if k % ncols == 0:
+            ax.set_ylabel("allocator", fontsize=9)
+        if k + ncols >= len(keys):  # the lowest panel of its column
+            ax.set_xlabel("IQM score", fontsize=9)
+    first = panels[0]  # the y axis is shared: its ticks are every panel's
+    first.set_yticks(y, list(order))
     first.invert_yaxis()
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
 
 
 def run(settings: Settings) -> Outcome:
-    """Run (or resume) every episode, then write the table, the per-episode rows and the figure."""
+    """Run (or resume) every episode, then write the table, the per-episode rows and the figure;
+    with `figure_only`, only redraw the figure from the report in the output folder."""
     s = settings.sized()
     out = s.out_dir()
+    if s.figure_only:
+        summary = read_report(redraw_source(out / "leaderboard.json"))["summary"]
+        scenarios, cells = cells_of(summary)
+        order = ranked(list(summary), cells)
+        return redraw(out, FIGURE, lambda path: draw(path, order, scenarios, cells))
     refs = references(s.references)
     jobs = specs(s)
     results, provenance = s.run_trials(jobs)

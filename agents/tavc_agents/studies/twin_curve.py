@@ -42,7 +42,7 @@ from tavc_agents.experiments.study import RESULTS_DIR, Outcome, StudySettings
 from tavc_agents.experiments.sweep import json_jobs
 from tavc_agents.experiments.twin_batch import run_batch
 from tavc_agents.studies import regime_map as rm
-from tavc_agents.studies.common import at_least, positive, refuse_invalid
+from tavc_agents.studies.common import at_least, positive, redraw_source, refuse_invalid
 from tavc_agents.studies.twin_batch import learner_of
 
 CONDITIONS = (*(rm.softmax_condition(t) for t in (0.002, 0.005, 0.01)), "epsilon_0.1")
@@ -464,14 +464,9 @@ def report_body(rows: Sequence[Row], evens: Sequence[Row], s: Settings) -> str:
 
 def read_rows(path: Path) -> list[Row]:
     """The rows of a written `twin_curve.csv` (numbers as floats), for `--figure-only`."""
-    if not path.is_file():
-        raise ValueError(
-            f"figure_only: there is no report {str(path)!r} to redraw from; allowed: the output "
-            "folder of a finished run (--update-reference, --out or --resume)"
-        )
     return [
         {k: (v if k == "condition" else float(v) if v else math.nan) for k, v in r.items()}
-        for r in read_csv(path)
+        for r in read_csv(redraw_source(path))
     ]
 
 

@@ -15,8 +15,10 @@ import matplotlib.figure
 
 from tavc_agents import learning_runs
 from tavc_agents.analysis.interference import plot_interference, read_group_rows
+from tavc_agents.analysis.plots import allocation_timeline
+from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.learning_runs import CurveRow, Evaluation, LearningRun
-from tavc_agents.studies import interference, table1
+from tavc_agents.studies import allocators, interference, leaderboard, table1
 from tests.helpers import figure_problems
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -109,3 +111,73 @@ def test_differentiation_figure_draws_every_source_and_says_what_is_pending(
     assert "dahl2004_passing: twin prediction" in labels
     assert "dahl2004_passing: physics result" in labels
     assert not any("pending" in t.get_text() for t in ax.texts)
+
+
+def test_leaderboard_draws_four_panels_to_a_row_labelled_on_the_outside(
+    saved: list[Any], tmp_path: Path
+) -> None:
+    scenarios = ["dahl2004", "passing", "bad_start", "priority_shifts", "breakdowns"]
+    order = ["static", "softmax_tavc", "random"]
+    cells = {
+        (a, k): (v, v - 0.1, v + 0.1)
+        for a, v in zip(order, (0.9, 0.3, 0.0))
+        for k in (*scenarios, "suite")
+    }
+    leaderboard.draw(tmp_path / "lb.png", order, scenarios, cells)
+    axes = [ax for ax in saved[-1].axes if ax.get_visible()]
+    assert len(axes) == 6 and len(saved[-1].axes) == 8  # 2 x 4, the last row's two spare hidden
+    rows = sorted({round(ax.get_position().y0, 3) for ax in axes})
+    assert len(rows) == 2
+    assert [ax.get_ylabel() for ax in axes] == ["allocator", "", "", "", "allocator", ""]
+    # every column's lowest panel names the x axis: the third and fourth's are in the first row
+    assert [ax.get_xlabel() for ax in axes] == ["", "", *["IQM score"] * 4]
+    assert [t.get_text() for t in axes[0].get_yticklabels()] == order
+    for ax in axes:
+        check_axes(ax)
+
+
+def test_allocators_y_label_fits_in_the_figure(saved: list[Any], tmp_path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    rows = [
+        {
+            "preset": p,
+            "label": f"allocator {k} (a long label)",
+            "fraction_of_optimum": str(0.8 + 0.01 * k),
+            "fraction_of_optimum_low": str(0.78 + 0.01 * k),
+            "fraction_of_optimum_high": str(0.82 + 0.01 * k),
+            "allocation_value_fraction": str(0.85),
+        }
+        for p in ("dahl2004", "three_circuits_three_classes")
+        for k in range(11)
+    ]
+    allocators.plot(rows, tmp_path / "a.png")  # text numbers, as a written allocators.csv has
+    fig = saved[-1]
+    label = fig.axes[0].yaxis.label
+    box = label.get_window_extent(FigureCanvasAgg(fig).get_renderer())
+    assert label.get_text().startswith("fraction of the model optimum")
+    assert box.x0 >= 0 and box.y0 >= 0 and box.y1 <= fig.bbox.height  # nothing cut off
+    for ax in fig.axes:
+        check_axes(ax)
+
+
+def test_timeline_rows_are_robots_and_the_trial_names_its_panel(
+    saved: list[Any], tmp_path: Path
+) -> None:
+    trial = TrialResult(
+        seed=0,
+        label="hand-made",
+        env_kwargs={},
+        agents=[f"robot_{i}" for i in range(4)],
+        speed_classes=["fast", "fast", "slow", "slow"],
+        speeds=[0.3, 0.3, 0.2, 0.2],
+        values=[2.0, 1.0],
+        convergence_s=3600.0,
+        measured_s=3600.0,
+        end_s=7200.0,
+        initial_circuits=[0, 0, 1, 1],
+    )
+    allocation_timeline({"softmax": trial, "random": trial}, tmp_path / "t.png")
+    axes = saved[-1].axes
+    assert [ax.get_ylabel() for ax in axes] == ["robot", "robot"]
+    assert [ax.get_title(loc="left") for ax in axes] == ["softmax", "random"]

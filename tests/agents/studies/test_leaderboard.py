@@ -1,5 +1,6 @@
-"""The leaderboard: the interquartile mean and its stratified bootstrap, and a short run end to end
-(every allocator on two scenarios, normalised by the committed references)."""
+"""The leaderboard: the interquartile mean and its stratified bootstrap, a short run end to end
+(every allocator on two scenarios, normalised by the committed references), and the redraw of the
+committed figure (`--figure-only`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tavc_agents.experiments.study import RESULTS_DIR
 from tavc_agents.studies import leaderboard as study
+from tests.helpers import check_figure_only
 
 
 def test_the_iqm_is_the_mean_of_the_middle_half() -> None:
@@ -50,3 +53,11 @@ def test_settings_refuse_a_missing_reference_and_one_seed(tmp_path: Path) -> Non
         study.Settings(references=tmp_path / "none.json")
     with pytest.raises(ValueError, match="seeds"):
         study.Settings(seeds=1)
+
+
+def test_figure_only_redraws_the_committed_figure_two_rows_of_four(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="figures need the plot extra")
+    committed = RESULTS_DIR / "leaderboard"
+    width, height = check_figure_only(study.run, study.Settings, committed, study.FIGURE, tmp_path)
+    # eight panels in two rows: readable at a page's width (one row of eight was 2112 x 516)
+    assert width <= 1300 and height > 0.6 * width

@@ -24,6 +24,7 @@ from tavc_agents.experiments.study import RESULTS_DIR
 from tavc_agents.learners.network import Mlp
 from tavc_agents.model import load_model
 from tavc_agents.studies import allocators, tavc_model, vacancy_chain
+from tests.helpers import check_figure_only
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -308,3 +309,12 @@ def test_a_bad_option_is_a_usage_error() -> None:
     ):
         script("vacancy_chain").main(["--trials", "1"])
     assert exit_.value.code == 2 and "trials = 1 is invalid" in err.getvalue()
+
+
+def test_allocators_figure_only_redraws_the_committed_figure(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="figures need the plot extra")
+    committed = RESULTS_DIR / "allocators"
+    width, height = check_figure_only(
+        allocators.run, allocators.Settings, committed, allocators.FIGURE, tmp_path
+    )
+    assert (width, height) == (1440, 600)  # two panels of 6 x 5 inches at 120 dpi
