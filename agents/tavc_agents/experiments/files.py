@@ -17,22 +17,21 @@ accidental damage, not a deliberate edit (anyone can recompute one).
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import hashlib
 import io
 import json
 import os
-import stat
 import sys
-import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from tavc_env._files import (
     MIB,
     CorruptFileError,
+    atomic_path,
+    check_writable,
     first_not_finite,
     kind_of,
     parse_json,
@@ -73,61 +72,6 @@ MANIFEST = "CHECKSUMS.sha256"
 RECORD_MAX_BYTES = 64 * MIB
 MANIFEST_MAX_BYTES = 16 * MIB
 REPORT_MAX_BYTES = 64 * MIB
-
-
-def check_writable(path: str | Path) -> Path:
-    """`path` as a Path, after checking that writing it replaces at most a regular file and that
-    its folder exists; a ValueError naming the path otherwise (call it before long work)."""
-    path = Path(path)
-    try:
-        mode = path.lstat().st_mode
-    except FileNotFoundError:
-        mode = None
-    if mode is not None and not stat.S_ISREG(mode):
-        raise ValueError(
-            f"{path} is {kind_of(mode)}; refusing to replace it with a regular file; allowed: a "
-            "new path or an existing regular file"
-        )
-    if not path.parent.is_dir():
-        raise ValueError(
-            f"{path}: the folder {path.parent} does not exist; allowed: an existing folder"
-        )
-    return path
-
-
-@contextlib.contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
-    """A temporary path to write into; on leaving the block it is flushed to disk and renamed
-    over `path` (on an error it is removed and `path` is untouched)."""
-    path = check_writable(path)
-    # the same ending as the destination, for writers that infer a format from it (figures)
-    fd, name = tempfile.mkstemp(
-        dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}"
-    )
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        yield tmp
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    _sync_folder(path.parent)
-
-
-def _sync_folder(folder: Path) -> None:
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:  # pragma: no cover - folders that cannot be opened (some platforms)
-        return
-    try:
-        os.fsync(fd)
-    except OSError:  # pragma: no cover
-        pass
-    finally:
-        os.close(fd)
 
 
 def write_text(path: str | Path, text: str) -> Path:

@@ -17,8 +17,6 @@ array is inflated: a small file declaring a huge array is refused at once, not a
 
 from __future__ import annotations
 
-import os
-import tempfile
 import zipfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -28,6 +26,7 @@ from typing import IO, Any
 import numpy as np
 
 from tavc_agents.policy import NonLearning, Policy, allowed_actions
+from tavc_env._files import atomic_path
 from tavc_env._validation import require
 from tavc_env.config import ArenaConfig
 
@@ -108,16 +107,8 @@ class Mlp:
         arrays: dict[str, Any] = {f"w{k}": w for k, w in enumerate(self.weights)}
         arrays |= {f"b{k}": b for k, b in enumerate(self.biases)}
         arrays["activation"] = np.array(self.activation)
-        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, **arrays)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(name, path)
-        except BaseException:
-            Path(name).unlink(missing_ok=True)
-            raise
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez(f, **arrays)
         return path
 
     @classmethod
