@@ -39,7 +39,7 @@ EPILOG = (
 COMMANDS = {
     "trial": "run one trial and print a summary",
     "record": "record a trial to an animated GIF (or its last frame to a PNG)",
-    "plot": "plot saved results (no rerun): timeline, q, interference, table1",
+    "plot": "plot saved results (no rerun): timeline, q, interference, table1, curve",
     "reproduce": "reproduce the paper's Table 1 (the table1 study)",
     "bench": "run one of the package's studies (the benchmarks)",
 }
@@ -247,6 +247,10 @@ def cmd_plot(args: argparse.Namespace) -> int:
         from tavc_agents.studies import table1
 
         table1.draw_figure(Path(args.source), args.figure, args.out)
+    elif args.what == "curve":
+        from tavc_agents.learning_runs import redraw_curve
+
+        redraw_curve(Path(args.source), args.out)
     else:
         trials = {}
         for source in args.source_list:
@@ -386,15 +390,16 @@ def parser() -> argparse.ArgumentParser:
         "over time, one panel per trial file (from `tavc trial --out` or a benchmark's saved "
         "trials); q: the learners' Q(high) - Q(other) over time, fast against slow; interference: "
         "the interference curve t(n) from benchmarks/results/interference.csv; table1: one of Table "
-        "1's figures drawn from a table1 output folder's saved trials.",
+        "1's figures drawn from a table1 output folder's saved trials; curve: a deep learner's "
+        "learning curve from its run folder's curve.csv (docs/examples/*.py --out).",
     )
-    plot.add_argument("what", choices=["timeline", "q", "interference", "table1"])
+    plot.add_argument("what", choices=["timeline", "q", "interference", "table1", "curve"])
     plot.add_argument(
         "source_list",
         nargs="*",
         metavar="FILE",
         help="trial JSON file(s) (timeline, q), interference.csv (default: the committed one), "
-        "or a table1 output folder (table1)",
+        "a table1 output folder (table1), or a learning run's folder (curve)",
     )
     plot.add_argument("--from-h", type=float, default=None, help="timeline: start (hours)")
     plot.add_argument("--to-h", type=float, default=None, help="timeline: end (hours)")
@@ -474,7 +479,7 @@ def _check_arguments(args: argparse.Namespace) -> None:
     if args.what != "interference" and not args.source_list:
         raise ValueError(
             f"plot {args.what} needs its input; allowed: trial JSON file(s) for timeline and "
-            "q, a table1 output folder for table1"
+            "q, a table1 output folder for table1, a learning run's folder for curve"
         )
     if args.from_h is not None and args.to_h is not None and not args.from_h < args.to_h:
         raise ValueError(
@@ -483,6 +488,8 @@ def _check_arguments(args: argparse.Namespace) -> None:
         )
     if args.what == "table1":
         _existing(args.source, "an output folder of the table1 study", folder=True)
+    elif args.what == "curve":
+        _existing(args.source, "a learning run's folder (docs/examples/*.py --out)", folder=True)
     elif args.what in ("timeline", "q"):
         for source in args.source_list:
             _existing(source, "a trial JSON file (tavc trial --out, or a study's saved trial)")

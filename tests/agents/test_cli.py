@@ -19,6 +19,7 @@ from tavc_agents import studies
 from tavc_agents.cli import main
 from tavc_agents.experiments.runner import TrialResult
 
+ROOT = Path(__file__).resolve().parents[2]
 TINY = ["--convergence-h", "0.02", "--measured-h", "0.05"]
 
 
@@ -159,6 +160,11 @@ def test_plots_from_saved_results(tmp_path: Path) -> None:
         code, printed, err = run([*argv, "--out", str(out)])
         assert code == 0, err
         assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "wrote" in printed
+    run_folder = ROOT / "benchmarks/results/marl/torchrl_mappo_dahl2004"
+    code, printed, err = run(["plot", "curve", str(run_folder), "--out", str(tmp_path / "c.png")])
+    assert code == 0 and (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG", err
+    code, _, err = run(["plot", "curve", str(softmax), "--out", str(tmp_path / "x.png")])
+    assert code == 2 and "a learning run's folder" in err
     code, _, err = run(["plot", "q", str(rand), "--out", str(tmp_path / "x.png")])
     assert code == 2 and "has no Q snapshots" in err
     code, _, err = run(["plot", "timeline", str(tmp_path / "missing.json")])
