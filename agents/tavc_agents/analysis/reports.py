@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,10 +16,13 @@ from typing import Any
 import numpy as np
 
 from tavc_agents.experiments.files import atomic_path, check_writable, write_text
+from tavc_agents.experiments.provenance import CHECKOUT
 
 
 def metadata_markdown(meta: Mapping[str, Any]) -> str:
-    """The provenance as a Markdown block (goes at the top of every report)."""
+    """The provenance as a Markdown block (goes at the top of every report). Paths inside the
+    checkout the run came from are shown relative to it, so a committed report reads the same on
+    every machine; the JSON beside it keeps them as they were (`cwd` says where)."""
     m, v, g = meta["machine"], meta["versions"], meta["git"]
     dirty = {True: " (dirty working tree)", False: "", None: ""}[g.get("dirty")]
     lines = [
@@ -39,7 +43,8 @@ def metadata_markdown(meta: Mapping[str, Any]) -> str:
     if "settings" in meta:
         settings = ", ".join(f"{k}={val}" for k, val in meta["settings"].items())
         lines.append(f"- Settings: {settings}")
-    return "\n".join(lines)
+    text = "\n".join(lines)
+    return text.replace(f"{CHECKOUT}{os.sep}", "") if CHECKOUT is not None else text
 
 
 def jsonable(obj: Any) -> Any:

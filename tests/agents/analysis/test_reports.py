@@ -19,7 +19,7 @@ from tavc_agents.analysis.reports import (
     metadata_markdown,
     write_results,
 )
-from tavc_agents.experiments.provenance import run_metadata
+from tavc_agents.experiments.provenance import CHECKOUT, run_metadata
 
 
 def test_write_results_writes_csv_markdown_and_json(tmp_path: Path) -> None:
@@ -43,6 +43,17 @@ def test_metadata_markdown_names_resumed_trials() -> None:
     assert "(2 trials run, 4 resumed from earlier runs; 10 s of trial time in all)" in (
         metadata_markdown(meta)
     )
+
+
+def test_metadata_markdown_shows_checkout_paths_relative_to_it() -> None:
+    """A committed report reads the same on every machine; the JSON keeps the real paths."""
+    assert CHECKOUT is not None  # the tests run from a checkout
+    out = CHECKOUT / "benchmarks" / "results" / "x"
+    meta = run_metadata(settings={"out": out, "other": "/elsewhere/y"})
+    meta["command"] = f"python benchmarks/x.py --out {out}"
+    md = metadata_markdown(meta)
+    assert "- Command: `python benchmarks/x.py --out benchmarks/results/x`" in md
+    assert "out=benchmarks/results/x, other=/elsewhere/y" in md and str(CHECKOUT) not in md
 
 
 def test_jsonable_and_formatting() -> None:
