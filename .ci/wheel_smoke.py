@@ -44,6 +44,10 @@ QUICK: dict[str, tuple[str, str | None]] = {
         "plot timeline trial.json --out timeline.png",
         "plot",
     ),
+    "tavc plot curve benchmarks/results/marl/torchrl_mappo_dahl2004 --out curve.png": (
+        f"plot curve {SOURCE}/benchmarks/results/marl/torchrl_mappo_dahl2004 --out curve.png",
+        "plot",
+    ),
     "tavc --version": ("--version", None),
 }
 

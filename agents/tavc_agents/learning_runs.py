@@ -255,10 +255,10 @@ def what_it_learned(run: LearningRun) -> str:
 def plot_curve(rows: Sequence[Mapping[str, Any]], title: str, path: str | Path) -> None:
     """The learning curve of `curve_rows` (or of a saved `curve.csv`): the greedy network's value
     rate, and the time each speed class spends on the high-value circuit, per checkpoint."""
+    fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 3.6))  # names the plot extra if it is missing
     from matplotlib.ticker import EngFormatter, MaxNLocator
 
     steps = [int(r["step"]) for r in rows]
-    fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 3.6))
     ax1.plot(steps, [float(r["performance"]) for r in rows], marker="o")
     ax1.set_ylabel("value / robot / 10 s (greedy)")
     ax1.set_ylim(bottom=0)
