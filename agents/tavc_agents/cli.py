@@ -248,9 +248,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
         table1.draw_figure(Path(args.source), args.figure, args.out)
     elif args.what == "curve":
-        from tavc_agents.learning_runs import redraw_curve
-
-        redraw_curve(Path(args.source), args.out)
+        plots.redraw_learning_curve(Path(args.source), args.out)
     else:
         trials = {}
         for source in args.source_list:

@@ -21,10 +21,10 @@ import numpy as np
 
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.measures import measure
-from tavc_agents.analysis.plots import subplots
+from tavc_agents.analysis.plots import learning_curve
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
-from tavc_agents.experiments.files import REPORT_MAX_BYTES, atomic_path, read_csv, read_text
+from tavc_agents.experiments.files import atomic_path
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.learners.network import Mlp, NetworkTeam
@@ -252,44 +252,9 @@ def what_it_learned(run: LearningRun) -> str:
     return f"{table}\n\n{reading}"
 
 
-def plot_curve(rows: Sequence[Mapping[str, Any]], title: str, path: str | Path) -> None:
-    """The learning curve of `curve_rows` (or of a saved `curve.csv`): the greedy network's value
-    rate, and the time each speed class spends on the high-value circuit, per checkpoint."""
-    fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 3.6))  # names the plot extra if it is missing
-    from matplotlib.ticker import EngFormatter, MaxNLocator
-
-    steps = [int(r["step"]) for r in rows]
-    ax1.plot(steps, [float(r["performance"]) for r in rows], marker="o")
-    ax1.set_ylabel("value / robot / 10 s (greedy)")
-    ax1.set_ylim(bottom=0)
-    ax2.plot(steps, [float(r["fast_share"]) for r in rows], marker="o", label="fast robots")
-    ax2.plot(steps, [float(r["slow_share"]) for r in rows], marker="s", label="slow robots")
-    ax2.set_ylabel("time on the high-value circuit")
-    ax2.set_ylim(0, 1)
-    ax2.set_title(f"the checkpoints' evaluation trial (seed {EVAL_SEED})", fontsize=9)
-    ax2.legend()
-    for ax in (ax1, ax2):
-        ax.set_xlabel("env steps of training")
-        # 200,000 steps in full would run the tick labels into each other: 50k, 100k, ...
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=5, integer=True))
-        ax.xaxis.set_major_formatter(EngFormatter(sep=""))
-    fig.suptitle(f"{title}: greedy evaluations during training")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
-
-
-def redraw_curve(folder: Path, path: str | Path) -> None:
-    """Draw the learning curve of a run that `write_learning_run` wrote into `folder` from its
-    `curve.csv` (titled with its report's heading), without training anything."""
-    rows = list(read_csv(folder / "curve.csv"))
-    heading = read_text(folder / "evaluation.md", REPORT_MAX_BYTES, "report").partition("\n")[0]
-    require(
-        heading.startswith("# ") and bool(rows),
-        "learning run folder",
-        str(folder),
-        "a folder with curve.csv and evaluation.md written by write_learning_run",
-    )
-    plot_curve(rows, heading[2:].strip(), path)
+def plot_curve(run: LearningRun, path: str | Path) -> None:
+    """The learning curve of `run` (`tavc_agents.analysis.plots.learning_curve` of its rows)."""
+    learning_curve(curve_rows(run), run.title, path)
 
 
 def write_learning_run(run: LearningRun, out: Path) -> list[Path]:
@@ -309,7 +274,7 @@ def write_learning_run(run: LearningRun, out: Path) -> list[Path]:
         report_body(run),
         [asdict(e) for e in run.final],
         {"final": summary(run), "curve": curve_rows(run)},
-        figures=[("curve.png", lambda p: plot_curve(curve_rows(run), run.title, p))],
+        figures=[("curve.png", lambda p: plot_curve(run, p))],
     )
     written = report.write(out, meta)
     write_csv(out / "curve.csv", curve_rows(run))

@@ -1,5 +1,5 @@
-"""Plots from saved results, no rerun needed: allocation timelines, Q-value trajectories, the
-interference curve and differentiation against crowding elasticity. matplotlib is an optional extra (`pip install 'tavc-env[plot]'`), imported
+"""Plots from saved results, no rerun needed: allocation timelines, Q-value trajectories, deep
+learners' learning curves, the interference curve and differentiation against crowding elasticity. matplotlib is an optional extra (`pip install 'tavc-env[plot]'`), imported
 only when a plot is drawn.
 
     from tavc_agents.analysis.plots import allocation_timeline
@@ -16,9 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from tavc_agents.experiments.files import read_csv
+from tavc_agents.experiments.files import REPORT_MAX_BYTES, read_csv, read_text
 from tavc_agents.experiments.runner import TrialResult
 from tavc_env import metrics
+from tavc_env._validation import require
 
 CIRCUIT_COLOURS = ["tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange"]
 CLASS_COLOURS = {"fast": "tab:red", "medium": "tab:green", "slow": "tab:blue"}
@@ -93,6 +94,48 @@ def allocation_timeline(
     fig.legend(handles, labels, loc="upper center", ncol=n_circuits + 1, fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     fig.savefig(path, dpi=120)
+
+
+def learning_curve(rows: Sequence[Mapping[str, Any]], title: str, path: str | Path) -> None:
+    """A deep learner's learning curve (`tavc_agents.learning_runs.curve_rows`, or the rows of a
+    saved `curve.csv`): the greedy network's value rate, and the time each speed class spends on
+    the high-value circuit, at each checkpoint (all evaluated on one trial, its `seed`)."""
+    fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 3.6))  # names the plot extra if it is missing
+    from matplotlib.ticker import EngFormatter, MaxNLocator
+
+    steps = [int(r["step"]) for r in rows]
+    ax1.plot(steps, [float(r["performance"]) for r in rows], marker="o")
+    ax1.set_ylabel("value / robot / 10 s (greedy)")
+    ax1.set_ylim(bottom=0)
+    ax2.plot(steps, [float(r["fast_share"]) for r in rows], marker="o", label="fast robots")
+    ax2.plot(steps, [float(r["slow_share"]) for r in rows], marker="s", label="slow robots")
+    ax2.set_ylabel("time on the high-value circuit")
+    ax2.set_ylim(0, 1)
+    ax2.set_title(f"the checkpoints' evaluation trial (seed {rows[0]['seed']})", fontsize=9)
+    ax2.legend()
+    for ax in (ax1, ax2):
+        ax.set_xlabel("env steps of training")
+        # 200,000 steps in full would run the tick labels into each other: 50k, 100k, ...
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=5, integer=True))
+        ax.xaxis.set_major_formatter(EngFormatter(sep=""))
+    fig.suptitle(f"{title}: greedy evaluations during training")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110, format="png")
+
+
+def redraw_learning_curve(folder: Path, path: str | Path) -> None:
+    """Draw the learning curve of a run that `tavc_agents.learning_runs.write_learning_run` wrote into `folder` from its
+    `curve.csv` (titled with its report's heading), without training anything: needs only the
+    plot extra."""
+    rows = list(read_csv(folder / "curve.csv"))
+    heading = read_text(folder / "evaluation.md", REPORT_MAX_BYTES, "report").partition("\n")[0]
+    require(
+        heading.startswith("# ") and bool(rows),
+        "learning run folder",
+        str(folder),
+        "a folder with curve.csv and evaluation.md written by a learning run",
+    )
+    learning_curve(rows, heading[2:].strip(), path)
 
 
 def q_gaps(result: TrialResult) -> tuple[np.ndarray, dict[str, np.ndarray]]:

@@ -15,7 +15,7 @@ import matplotlib.figure
 
 from tavc_agents import learning_runs
 from tavc_agents.analysis.interference import plot_interference, read_group_rows
-from tavc_agents.analysis.plots import allocation_timeline
+from tavc_agents.analysis.plots import allocation_timeline, learning_curve, redraw_learning_curve
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.learning_runs import CurveRow, Evaluation, LearningRun
 from tavc_agents.studies import allocators, interference, leaderboard, table1
@@ -66,7 +66,7 @@ def test_learning_curve_has_units_legends_and_zero_based_axes(
     run = LearningRun("demo", "a demo run", {"preset": "dahl2004"}, {})
     for step, perf in ((100, 0.10), (200, 0.11)):
         run.curve.append(CurveRow(step, 1.0, Evaluation(0, 1.0, perf, 0.5, 0.4, 2.0)))
-    learning_runs.plot_curve(learning_runs.curve_rows(run), run.title, tmp_path / "curve.png")
+    learning_curve(learning_runs.curve_rows(run), run.title, tmp_path / "curve.png")
     for ax in saved[-1].axes:
         check_axes(ax)
         assert ax.get_ylim()[0] == 0.0
@@ -78,7 +78,7 @@ def test_learning_curve_redraws_from_a_saved_run_with_readable_step_ticks(
     """A committed run folder (curve.csv + evaluation.md) redraws without training; 200,000
     steps read as 0, 50k, ... rather than six-digit labels that overlap."""
     folder = ROOT / "benchmarks/results/marl/rllib_ppo_dahl2004"
-    learning_runs.redraw_curve(folder, tmp_path / "curve.png")
+    redraw_learning_curve(folder, tmp_path / "curve.png")
     figure = saved[-1]
     assert figure.get_suptitle().startswith("RLlib PPO")
     for ax in figure.axes:
@@ -89,7 +89,7 @@ def test_learning_curve_redraws_from_a_saved_run_with_readable_step_ticks(
     with pytest.raises(ValueError, match="learning run folder"):
         (tmp_path / "curve.csv").write_text("step,performance\n")
         (tmp_path / "evaluation.md").write_text("no heading\n")
-        learning_runs.redraw_curve(tmp_path, tmp_path / "x.png")
+        redraw_learning_curve(tmp_path, tmp_path / "x.png")
 
 
 def test_interference_figure_names_its_arena_and_starts_task_times_at_zero(
