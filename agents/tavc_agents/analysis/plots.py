@@ -124,9 +124,9 @@ def learning_curve(rows: Sequence[Mapping[str, Any]], title: str, path: str | Pa
 
 
 def redraw_learning_curve(folder: Path, path: str | Path) -> None:
-    """Draw the learning curve of a run that `tavc_agents.learning_runs.write_learning_run` wrote into `folder` from its
-    `curve.csv` (titled with its report's heading), without training anything: needs only the
-    plot extra."""
+    """Draw the learning curve of the run that `tavc_agents.learning_runs.write_learning_run`
+    wrote into `folder`, from its `curve.csv` (titled with its report's heading), without
+    training anything: needs only the plot extra."""
     rows = list(read_csv(folder / "curve.csv"))
     heading = read_text(folder / "evaluation.md", REPORT_MAX_BYTES, "report").partition("\n")[0]
     require(
