@@ -34,11 +34,16 @@ def metadata_markdown(meta: Mapping[str, Any]) -> str:
     ]
     if "wall_time_s" in meta:
         wall = f"- Wall time: {meta['wall_time_s']:.1f} s"
-        if meta.get("trials_resumed"):
-            wall += (
-                f" ({meta['trials_run']} trials run, {meta['trials_resumed']} resumed from earlier "
-                f"runs; {meta['trial_wall_s_total']:.0f} s of trial time in all)"
+        counts = []
+        if meta.get("trials_resumed") or meta.get("interrupted"):
+            counts.append(
+                f"{meta['trials_run']} trials run, {meta['trials_resumed']} resumed from earlier runs"
             )
+        if "trial_wall_s_total" in meta and counts:
+            counts.append(f"{meta['trial_wall_s_total']:.0f} s of trial time in all")
+        if meta.get("interrupted"):
+            counts.append("run interrupted; report rendered later from its saved jobs")
+        wall += f" ({'; '.join(counts)})" if counts else ""
         lines.append(wall)
     if "settings" in meta:
         settings = ", ".join(f"{k}={val}" for k, val in meta["settings"].items())

@@ -184,7 +184,8 @@ def run_recorded(
 
     When this run computes any job, the provenance is this run's (taken before the jobs start,
     so it names the commit they ran from), with its wall time and how many jobs were run or
-    resumed, and it is saved in `report_dir`. When every job is resumed, the provenance saved
+    resumed, and it is saved in `report_dir`, also when the run is interrupted (Ctrl-C, SIGTERM,
+    a refused save) after computing some jobs (then marked `interrupted`). When every job is resumed, the provenance saved
     there by the run that computed them is returned (or, if there is none, this run's). A
     damaged provenance.json (garbled, not a JSON object) is named in one line and replaced by this
     run's; one that is not a regular file (a folder, a FIFO, a link) is refused before any job
@@ -192,25 +193,46 @@ def run_recorded(
     started = time.perf_counter()
     damaged = _replaceable_provenance(Path(report_dir))  # before any job runs
     meta = run_metadata(settings=dict(settings))
+    finished: list[str] = []
     resumed: list[str] = []
+    trial_wall = 0.0
 
     def note(job: J, result: R, was_resumed: bool) -> None:
+        nonlocal trial_wall
+        if wall_of is not None:
+            trial_wall += wall_of(result)
+        finished.append(kind.key(job))
         if was_resumed:
             resumed.append(kind.key(job))
 
-    results = run_jobs(
-        jobs, kind, jobs_dir, workers, note, progress_bar=progress_bar, backend=backend
-    )
+    def counted(**extra: Any) -> dict[str, Any]:
+        counts: dict[str, Any] = dict(
+            wall_time_s=time.perf_counter() - started,
+            trials_resumed=len(resumed),
+            trials_run=len(finished) - len(resumed),
+            **extra,
+        )
+        if wall_of is not None:
+            counts["trial_wall_s_total"] = trial_wall
+        return {**meta, **counts}
+
+    try:
+        results = run_jobs(
+            jobs, kind, jobs_dir, workers, note, progress_bar=progress_bar, backend=backend
+        )
+    except BaseException:
+        # The jobs an interrupted run computed are saved; so is its provenance, so that a report
+        # rendered later from them names the commit and machine that made them.
+        if len(finished) > len(resumed):
+            try:
+                save_provenance(report_dir, counted(interrupted=True))
+            except Exception as error:  # the interruption is the news; this is one line beside it
+                print(f"provenance of the interrupted run not saved: {error}", file=sys.stderr)
+        raise
     stored = None if damaged else load_provenance(report_dir)
     if len(resumed) == len(jobs) and stored is not None:
         return results, stored
-    meta.update(
-        wall_time_s=time.perf_counter() - started,
-        trials_resumed=len(resumed),
-        trials_run=len(jobs) - len(resumed),
-    )
-    if wall_of is not None:
-        meta["trial_wall_s_total"] = sum(wall_of(r) for r in results.values())
+    meta = counted()
     if len(resumed) < len(jobs) or damaged:
         if damaged:
             print(f"{damaged}; replaced by this run's provenance", file=sys.stderr)
