@@ -96,13 +96,20 @@ def allocation_timeline(
     fig.savefig(path, dpi=120)
 
 
+def count_ticks(axis: Any) -> None:
+    """Ticks for a count of steps or decisions: 50k, 100k, ... (200,000 in full would run the
+    labels into each other)."""
+    from matplotlib.ticker import EngFormatter, MaxNLocator
+
+    axis.set_major_locator(MaxNLocator(nbins=5, integer=True))
+    axis.set_major_formatter(EngFormatter(sep=""))
+
+
 def learning_curve(rows: Sequence[Mapping[str, Any]], title: str, path: str | Path) -> None:
     """A deep learner's learning curve (`tavc_agents.learning_runs.curve_rows`, or the rows of a
     saved `curve.csv`): the greedy network's value rate, and the time each speed class spends on
     the high-value circuit, at each checkpoint (all evaluated on one trial, its `seed`)."""
     fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 3.6))  # names the plot extra if it is missing
-    from matplotlib.ticker import EngFormatter, MaxNLocator
-
     steps = [int(r["step"]) for r in rows]
     ax1.plot(steps, [float(r["performance"]) for r in rows], marker="o")
     ax1.set_ylabel("value / robot / 10 s (greedy)")
@@ -115,9 +122,7 @@ def learning_curve(rows: Sequence[Mapping[str, Any]], title: str, path: str | Pa
     ax2.legend()
     for ax in (ax1, ax2):
         ax.set_xlabel("env steps of training")
-        # 200,000 steps in full would run the tick labels into each other: 50k, 100k, ...
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=5, integer=True))
-        ax.xaxis.set_major_formatter(EngFormatter(sep=""))
+        count_ticks(ax.xaxis)
     fig.suptitle(f"{title}: greedy evaluations during training")
     fig.tight_layout()
     fig.savefig(path, dpi=110, format="png")

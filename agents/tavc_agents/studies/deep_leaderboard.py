@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from tavc_agents.analysis.plots import subplots
+from tavc_agents.analysis.plots import count_ticks, subplots
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.experiments.files import read_csv, read_report
 from tavc_agents.experiments.runner import run_trial
@@ -500,6 +500,8 @@ def draw(
     """One panel per scenario: each learner's curve, mean over seeds with the range as a band."""
     fig, axes = subplots(1, len(s.scenarios), figsize=(3.4 * len(s.scenarios), 3.2))
     for ax, name in zip(np.atleast_1d(axes), s.scenarios):
+        if not any(j.scenario == name and run_key(j) in results for j in runs):
+            ax.text(0.5, 0.5, "no runs saved yet", transform=ax.transAxes, ha="center", fontsize=8)
         for algorithm in s.algorithms:
             curves = [
                 results[run_key(j)]["curve"]
@@ -519,6 +521,7 @@ def draw(
         ax.axhline(0.0, color="grey", lw=0.5)
         ax.set_title(SCENARIOS[name].id, fontsize=9)
         ax.set_xlabel("decisions of training", fontsize=8)
+        count_ticks(ax.xaxis)
         ax.set_ylabel(f"score, greedy (seed {CURVE_SEED})", fontsize=8)
         ax.legend(fontsize=7)
     fig.tight_layout()
