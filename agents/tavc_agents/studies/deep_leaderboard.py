@@ -20,7 +20,6 @@ The script is `benchmarks/deep_leaderboard.py`.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -341,8 +340,8 @@ def cost_plan(s: Settings, rows: Sequence[Row], n_jobs: int) -> str:
         f"A whole run (training, learning curve, evaluation) took {run_cpu / 60:.1f} CPU min on "
         f"average, so the {n_jobs} runs take about {n_jobs * run_cpu / 3600:.1f} CPU h. "
         f"Saved: {len(rows)}; left: {left}, about {left * run_cpu / 3600:.1f} CPU h, "
-        f"{math.ceil(left * run_cpu / 3600 / 2)} one-hour sessions on 2 free cores (two runs "
-        "side by side, each on one core)."
+        f"{left * run_cpu / 3600 / 2:.1f} h of wall time on 2 free cores (two runs side by side, "
+        "each on one core)."
     )
 
 
