@@ -105,34 +105,41 @@ class Simulation:
         self.tasks = TaskCycle(config)
         n = config.n_robots
         self.speeds = np.array([r.speed for r in config.robots], dtype=float)
-        self.speed_factor = np.ones(n)
-        self.top_speed = self.speeds.copy()  # speeds * speed_factor, updated at each new leg
-        self.heading = np.zeros(n)
         self._pos = np.zeros((n, 2))  # positions after the last physics step
-        self._hits = np.zeros(n, dtype=np.int64)
-        self._stalled = np.zeros(n, dtype=np.int64)
         self._dt = config.dt
         self._tick_args: TickArgs | None = None
         self._bound: tuple[object, ...] = (None,) * 6
-        self._next_service = math.inf  # earliest end of a loading / unloading
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
             neighbour_cell_m(config.robot_radius, config.sensing_range_m)
             if n >= GRID_MIN_ROBOTS
             else 0.0
         )
+        self._rng: np.random.Generator | None = None
+        self._observers: list[Observer] = []
+        self._clear_episode()
+
+    def _clear_episode(self) -> None:
+        """Every attribute an episode changes, as at its start (before `reset` draws anything).
+        All of them, so that an arena reset after earlier episodes is the arena a new one would
+        be: copying an env replays its episode on a new arena and checks that it is."""
+        n = self.config.n_robots
+        self.time_s = 0.0
+        self.ticks = 0
+        self.speed_factor = np.ones(n)
+        self.top_speed = self.speeds.copy()  # speeds * speed_factor, updated at each new leg
+        self.heading = np.zeros(n)
+        self._hits = np.zeros(n, dtype=np.int64)  # the compiled tick's outputs (first k rows)
+        self._stalled = np.zeros(n, dtype=np.int64)
+        self._next_service = math.inf  # earliest end of a loading / unloading
         self._anchor = np.zeros((n, 2))  # where each robot last made progress ...
         self._anchor_time = np.zeros(n)  # ... and when
         self._escape_until = np.zeros(n)  # end of a robot's escape manoeuvre (0: none)
         self._escapes_end = 0.0  # the latest of them: a scalar test in every tick, not a max
         self._escape_target = np.zeros((n, 2))
         self.escapes = 0  # escape manoeuvres started since reset
-        self._reset_jam_watch()
-        self.time_s = 0.0
-        self.ticks = 0
-        self._rng: np.random.Generator | None = None
         self._schedule: list[ScheduleEntry] = []
-        self._observers: list[Observer] = []
+        self._reset_jam_watch()
 
     # -- life cycle ----------------------------------------------------------------------------
     @property
@@ -157,8 +164,6 @@ class Simulation:
         self._rng = rng
         self.world = World(cfg)
         self.tasks = TaskCycle(cfg)
-        self.time_s = 0.0
-        self.ticks = 0
         n, m = cfg.n_robots, cfg.n_circuits
         positions = np.zeros((n, 2))
         per_circuit = [0] * m
@@ -171,17 +176,10 @@ class Simulation:
         self.world.place(positions)
         self.world.sync_positions()
         self._pos = self.world.pos
+        self._clear_episode()
         self._anchor = self._pos.copy()
-        self._anchor_time = np.zeros(n)
-        self._escape_until = np.zeros(n)
-        self._escapes_end = 0.0
-        self.escapes = 0
-        self._reset_jam_watch()
         self.heading = rng.uniform(-math.pi, math.pi, size=n)
-        self.speed_factor = np.ones(n)
-        self.top_speed = self.speeds.copy()
         self._schedule = breakdown_schedule(cfg)
-        self._next_service = math.inf
 
     # -- decisions and failures ----------------------------------------------------------------
     def choose(self, robot: int, circuit: int) -> None:

@@ -322,3 +322,23 @@ def test_a_simulation_changed_behind_its_env_refuses_to_be_copied(method: str) -
     env.sim.advance(3.0)  # not through the env: no record of it
     with pytest.raises(ValueError, match=r"changed other than through its env"):
         _clone(method, env)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_an_env_reset_after_earlier_episodes_copies_like_a_new_one(method: str) -> None:
+    """`reset` must leave nothing of earlier episodes: the copy replays the episode on a new arena
+    and refuses if the result differs. CI once hit that after `parallel_api_test`: reset left the
+    escape goals and the compiled tick's output rows of earlier episodes in place. Here every
+    array the arena keeps is scribbled over in place before the reset (its top speeds aside,
+    which come from the config, not from an episode)."""
+    used = tavc_env.parallel_env()
+    _drive(used, used.reset(seed=3), 5, np.random.default_rng(3))
+    for name, value in vars(used.sim).items():
+        if isinstance(value, np.ndarray) and value.flags.writeable and name != "speeds":
+            value[...] = 7
+    new = tavc_env.parallel_env()
+    for env in (used, new):
+        env.reset(seed=1)
+        env.step({a: 0 for a in env.agents})
+    assert _arena_digest(used.sim) == _arena_digest(new.sim)
+    assert _clone(method, used).sim_time_s == used.sim_time_s
