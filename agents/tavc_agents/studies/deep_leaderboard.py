@@ -420,6 +420,11 @@ def report(
             "committed allocators' leaderboard's best IQM, if it is committed.",
             markdown_table(header, table),
             verdict,
+            "Every saved run: its network untrained, at its best and at its last checkpoint of "
+            f"the learning curve (one episode, seed {CURVE_SEED}), its score (the evaluation "
+            "above), and whether its final greedy policy is `stay` (every robot goes back to the "
+            "circuit it just served):",
+            runs_table(s, runs, results, refs),
             cost_plan(s, rows, len(runs)),
             f"Machine: {machine.get('cpu_model', '?')}, {machine.get('cores', '?')} cores, "
             f"{machine.get('ram_gib', '?')} GiB ({machine.get('platform', '?')}). "
@@ -436,6 +441,45 @@ def report(
     rep = Report("deep_leaderboard", "Deep MARL on the scenario suite", body, rows, summary)
     rep.figures.append((FIGURE, lambda path: draw(path, s, runs, results, refs, stay)))
     return rep
+
+
+def runs_table(
+    s: Settings,
+    runs: Sequence[Run],
+    results: Mapping[str, Mapping[str, Any]],
+    refs: Mapping[str, Any],
+) -> str:
+    """One row per saved run, by scenario, learner and seed: its learning curve's start, best
+    and end, and its final score."""
+    table = []
+    order = sorted(
+        runs, key=lambda j: (s.scenarios.index(j.scenario), s.algorithms.index(j.algorithm), j.seed)
+    )
+    for job in order:
+        result = results.get(run_key(job))
+        if result is None:
+            continue
+        ref = refs[job.scenario]
+        curve = [(p["decisions"], normalised(p["value_per_h"], ref)) for p in result["curve"]]
+        best = max(curve, key=lambda point: point[1])
+        choices = result["choices"]
+        stays = all(row[c] == c for row in choices for c in range(len(row)))
+        table.append(
+            [
+                job.scenario,
+                job.algorithm,
+                job.seed,
+                f"{curve[0][1]:.2f}",
+                f"{best[1]:.2f} at {best[0]:,}",
+                f"{curve[-1][1]:.2f}",
+                f"{normalised(float(np.mean(result['eval_values_per_h'])), ref):.3f}",
+                "stay" if stays else "moves",
+            ]
+        )
+    if not table:
+        return "(no run saved yet)"
+    header = ["scenario", "learner", "seed", "untrained", "best (decisions)", "last", "score"]
+    return markdown_table([*header, "final policy"], table)
 
 
 def learned(s: Settings, runs: Sequence[Run], results: Mapping[str, Mapping[str, Any]]) -> str:
