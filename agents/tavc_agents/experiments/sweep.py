@@ -752,16 +752,23 @@ def json_jobs(
     key: Callable[[J], str],
     unit: str = "run",
     omit: Collection[str] = (),
+    added: Mapping[str, Any] | None = None,
 ) -> JobKind[J, dict[str, Any]]:
     """A `JobKind` for jobs that are frozen dataclasses and results that are JSON data: each is
     saved as `{"record": <the job>, "result": <the result>}`. Fields named in `omit` stay out of
     the record (bulky inputs; the job must then carry a digest of them in another field, so that
-    a changed input still fails to resume)."""
+    a changed input still fails to resume). `added`: fields added to the job after some were
+    saved, with the value that does what the job did before them; a record without such a field
+    is taken as made with that value."""
+    before = dict(added or {})
 
     def record(job: J) -> dict[str, Any]:
         fields = {k: v for k, v in asdict(job).items() if k not in omit}  # type: ignore[call-overload]
         data: dict[str, Any] = json.loads(json.dumps(fields, default=repr))
         return data
+
+    def same(stored: dict[str, Any] | None, wanted: dict[str, Any]) -> bool:
+        return stored is not None and {**before, **stored} == wanted
 
     return JobKind(
         run=run,
@@ -771,6 +778,7 @@ def json_jobs(
         load=_load_json,
         parse=packs.json_from_data,
         unit=unit,
+        same=same,
     )
 
 
