@@ -56,6 +56,23 @@ def test_a_tiny_run_trains_evaluates_reports_and_resumes_without_training(
     assert again.text == outcome.text
 
 
+def test_team_credit_gives_every_robot_the_steps_mean_reward_and_trains(tmp_path: Path) -> None:
+    from tavc_agents.learners import torchrl_ppo
+    from tavc_env.scenarios import ScenarioEnv
+
+    def rewards(credit: str) -> Any:
+        env = ScenarioEnv("dahl2004", observation_mode="paper_id", reward="value")
+        wrapped = torchrl_ppo.make_env(env, 0, 1e-3, credit)
+        actions = wrapped.full_action_spec.zero()  # everyone on circuit 0: the same steps
+        return wrapped.rollout(60, policy=lambda td: td.update(actions))["next", "robot", "reward"]
+
+    own, team = rewards("own"), rewards("team")
+    assert own.sum() > 0 and (own != own[..., :1, :]).any()  # deliveries, not all alike
+    assert (team == own.mean(-2, keepdim=True)).all()
+    outcome = study.run(tiny(tmp_path, credit="team"))
+    assert "each robot on the team's" in outcome.text
+
+
 def test_the_report_renders_with_no_run_saved(tmp_path: Path) -> None:
     outcome = study.run(tiny(tmp_path, max_jobs=0))
     assert "| tavc/dahl2004-v0 | ippo | 0 | - |" in outcome.text
@@ -73,6 +90,7 @@ def test_the_report_renders_with_no_run_saved(tmp_path: Path) -> None:
         ("eval_seeds", 0),
         ("episode_h", -1.0),
         ("max_jobs", -1),
+        ("credit", "shared"),
         ("references", Path("/nonexistent/references.json")),
     ],
 )

@@ -3,7 +3,7 @@ centralised critic, which sees every robot's observation) and IPPO (a decentrali
 too), as TorchRL's multi-agent tutorials build them. Needs the `marl` extra (torch, TorchRL).
 
 `make_env` wraps a scenario's env as it is (`paper_id` observations, so the shared actor tells the
-robots apart); `make_ppo` builds the actor, the critic and the loss; `network` exports the actor
+robots apart), each robot credited with its own rewards or with the team's (`CREDITS`); `make_ppo` builds the actor, the critic and the loss; `network` exports the actor
 for the trial runner (`tavc_agents.learners.network.Mlp`); `train` runs PPO until a budget of
 decisions is spent. A decision is one robot's action at its decision epoch (docs/semi_mdp.md): a
 robot not at an epoch has a mask that allows only its own circuit, so its action is forced, its
@@ -19,7 +19,7 @@ from typing import Any
 import torch
 from tensordict.nn import TensorDictModule
 from torchrl.collectors import Collector
-from torchrl.envs import RewardScaling, TransformedEnv
+from torchrl.envs import Compose, RewardScaling, Transform, TransformedEnv
 from torchrl.envs.libs.pettingzoo import PettingZooWrapper
 from torchrl.modules import MaskedCategorical, MultiAgentMLP, ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss, ValueEstimators
@@ -32,13 +32,34 @@ OBS = (GROUP, "observation", "observation")  # the Dict's vector; its mask is (G
 MASK = (GROUP, "action_mask")
 ALGORITHMS = ("mappo", "ippo")
 """mappo: the critic sees every robot's observation; ippo: each robot's own (both shared)."""
+CREDITS = ("own", "team")
+"""own: each robot's reward is its own deliveries; team: every robot gets the team's mean reward
+of the step (docs/semi_mdp.md section 4: the team's objective, at the cost of noise)."""
 
 
-def make_env(parallel_env: Any, seed: int, reward_scale: float) -> TransformedEnv:
+class TeamReward(Transform):
+    """Every robot's reward replaced by the mean over the group in the same step."""
+
+    def __init__(self) -> None:
+        super().__init__(in_keys=[(GROUP, "reward")], out_keys=[(GROUP, "reward")])
+
+    def _apply_transform(self, reward: torch.Tensor) -> torch.Tensor:
+        return reward.mean(dim=-2, keepdim=True).expand_as(reward)  # (..., robots, 1)
+
+    def transform_reward_spec(self, reward_spec: Any) -> Any:
+        return reward_spec
+
+
+def make_env(
+    parallel_env: Any, seed: int, reward_scale: float, credit: str = "own"
+) -> TransformedEnv:
     """`parallel_env` (a PettingZoo ParallelEnv with `paper_id` observations) in TorchRL's
-    wrapper, seeded with `seed`, its rewards multiplied by `reward_scale` (networks see O(1))."""
+    wrapper, seeded with `seed`, its rewards credited as `credit` says and multiplied by
+    `reward_scale` (networks see O(1))."""
+    require(credit in CREDITS, "credit", credit, f"one of {list(CREDITS)}")
     env = PettingZooWrapper(parallel_env, categorical_actions=True, seed=seed)
-    return TransformedEnv(env, RewardScaling(0.0, reward_scale, in_keys=[(GROUP, "reward")]))
+    scale = RewardScaling(0.0, reward_scale, in_keys=[(GROUP, "reward")])
+    return TransformedEnv(env, Compose(TeamReward(), scale) if credit == "team" else scale)
 
 
 def make_ppo(

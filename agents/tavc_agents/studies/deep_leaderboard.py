@@ -41,6 +41,7 @@ from tavc_agents.studies.scenarios import value_per_hour
 from tavc_env.scenarios import SCENARIOS
 
 ALGORITHMS = ("mappo", "ippo")  # as tavc_agents.learners.torchrl_ppo.ALGORITHMS (no torch here)
+CREDITS = ("own", "team")  # as tavc_agents.learners.torchrl_ppo.CREDITS
 DEEP_SCENARIOS = ("dahl2004", "passing", "three_circuits", "bad_start")
 """The paper's scenario and the three with the most measured headroom."""
 CURVE_SEED = 1_000
@@ -50,6 +51,10 @@ FIGURE = "deep_leaderboard.png"
 JOBS = "runs"
 NETWORKS = "networks"
 Row = dict[str, Any]
+CREDIT_TEXT = {
+    "own": "each robot on its own deliveries",
+    "team": "each robot on the team's: the mean reward of the step, every robot alike",
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,7 +73,7 @@ class Settings(ScoredSettings):
     }
     recorded_fields: ClassVar = (
         "algorithms scenarios seeds decisions batch epochs curve_points eval_seeds_text "
-        "episode_text resamples seed"
+        "episode_text resamples seed credit"
     )
 
     algorithms: tuple[str, ...] = ALGORITHMS
@@ -83,6 +88,9 @@ class Settings(ScoredSettings):
     """env steps per PPO batch"""
     epochs: int = 4
     """PPO passes over each batch"""
+    credit: str = "own"
+    """own: each robot is trained on its own deliveries; team: on the team's (the mean reward of
+    the step, every robot alike)"""
     curve_points: int = 10
     """learning-curve evaluations after the untrained one"""
     eval_seeds: int | None = None
@@ -113,6 +121,7 @@ class Settings(ScoredSettings):
                 ("decisions", at_least(self.decisions, 1), "an integer >= 1"),
                 ("batch", at_least(self.batch, 2), "an integer >= 2 (env steps)"),
                 ("epochs", at_least(self.epochs, 1), "an integer >= 1"),
+                ("credit", self.credit in CREDITS, f"one of {', '.join(CREDITS)}"),
                 ("curve_points", at_least(self.curve_points, 1), "an integer >= 1"),
                 ("eval_seeds", self.eval_seeds is None or at_least(self.eval_seeds, 1), ">= 1"),
                 ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
@@ -144,6 +153,8 @@ class Run:
     eval_seeds: tuple[int, ...]
     networks: str = ""
     """where the final network is written (`<networks>/<key>.npz`; not part of the record)"""
+    credit: str = "own"
+    """whose deliveries a robot is trained on (`Settings.credit`)"""
 
 
 def run_key(job: Run) -> str:
@@ -175,6 +186,7 @@ def jobs(s: Settings, networks: Path) -> list[Run]:
                             float(hours) * 3600.0,
                             tuple(scenario.eval_seeds[:n]),
                             str(networks),
+                            s.credit,
                         )
                     )
     return out
@@ -220,6 +232,7 @@ def run_training(job: Run) -> dict[str, Any]:
         ),
         job.seed,
         REWARD_SCALE,
+        job.credit,
     )
     curve: list[dict[str, Any]] = []
     curve_cpu = [0.0]  # CPU seconds of the curve's evaluations (not training)
@@ -256,7 +269,8 @@ def run_training(job: Run) -> dict[str, Any]:
     }
 
 
-RUNS = json_jobs(run_training, run_key, unit="run", omit=("networks",))
+# runs saved before `credit` existed were all trained on their own deliveries
+RUNS = json_jobs(run_training, run_key, unit="run", omit=("networks",), added={"credit": "own"})
 
 
 # -- the report ---------------------------------------------------------------------------------------
@@ -408,7 +422,8 @@ def report(
     body = "\n\n".join(
         [
             "TorchRL MAPPO (centralised critic) and IPPO (decentralised critic), one actor shared "
-            'by every robot (`paper_id` observations), trained with `reward="value"` for '
+            'by every robot (`paper_id` observations), trained with `reward="value"` '
+            f"({CREDIT_TEXT[s.credit]}) for "
             f"{s.decisions:,} robot decisions per run (the same budget in every scenario; PPO "
             f"batches of {s.batch} env steps, {s.epochs} epochs), training seeds "
             f"0-{s.seeds - 1}. Each run's score is its final network's mean normalised score "
