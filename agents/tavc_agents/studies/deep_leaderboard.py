@@ -51,6 +51,7 @@ FIGURE = "deep_leaderboard.png"
 JOBS = "runs"
 NETWORKS = "networks"
 Row = dict[str, Any]
+LEARNER_TEXT = {"mappo": "MAPPO (centralised critic)", "ippo": "IPPO (decentralised critic)"}
 CREDIT_TEXT = {
     "own": "each robot on its own deliveries",
     "team": "each robot on the team's: the mean reward of the step, every robot alike",
@@ -421,7 +422,7 @@ def report(
     )
     body = "\n\n".join(
         [
-            "TorchRL MAPPO (centralised critic) and IPPO (decentralised critic), one actor shared "
+            f"TorchRL {' and '.join(LEARNER_TEXT[a] for a in s.algorithms)}, one actor shared "
             'by every robot (`paper_id` observations), trained with `reward="value"` '
             f"({CREDIT_TEXT[s.credit]}) for "
             f"{s.decisions:,} robot decisions per run (the same budget in every scenario; PPO "
