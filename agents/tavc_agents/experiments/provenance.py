@@ -188,8 +188,8 @@ def run_recorded(
     a refused save) after computing some jobs (then marked `interrupted`). When every job is
     resumed, the provenance saved there by the run that computed them is returned (or, if there
     is none, this run's). A damaged provenance.json (garbled, not a JSON object) is named in one
-    line and replaced by this run's; one that is not a regular file (a folder, a FIFO, a link) is refused before any job
-    runs, as a run could only replace it by deleting it."""
+    line and replaced by this run's; one that is not a regular file (a folder, a FIFO, a link) is
+    refused before any job runs, as a run could only replace it by deleting it."""
     started = time.perf_counter()
     damaged = _replaceable_provenance(Path(report_dir))  # before any job runs
     meta = run_metadata(settings=dict(settings))

@@ -3,9 +3,10 @@ centralised critic, which sees every robot's observation) and IPPO (a decentrali
 too), as TorchRL's multi-agent tutorials build them. Needs the `marl` extra (torch, TorchRL).
 
 `make_env` wraps a scenario's env as it is (`paper_id` observations, so the shared actor tells the
-robots apart), each robot credited with its own rewards or with the team's (`CREDITS`); `make_ppo` builds the actor, the critic and the loss; `network` exports the actor
-for the trial runner (`tavc_agents.learners.network.Mlp`); `train` runs PPO until a budget of
-decisions is spent. A decision is one robot's action at its decision epoch (docs/semi_mdp.md): a
+robots apart), each robot credited with its own rewards or with the team's (`CREDITS`);
+`make_ppo` builds the actor, the critic and the loss; `network` exports the actor for the trial
+runner (`tavc_agents.learners.network.Mlp`); `train` runs PPO until a budget of decisions is
+spent. A decision is one robot's action at its decision epoch (docs/semi_mdp.md): a
 robot not at an epoch has a mask that allows only its own circuit, so its action is forced, its
 log-probability is 0 and it adds nothing to the policy's gradient.
 """

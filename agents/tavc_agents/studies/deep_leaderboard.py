@@ -285,7 +285,7 @@ def rows_of(
         result = results.get(run_key(job))
         if result is None:
             continue
-        value = float(np.mean(result["eval_values_per_h"]))
+        value = mean_value(result)
         rows.append(
             {
                 "scenario": job.scenario,
@@ -300,6 +300,11 @@ def rows_of(
             }
         )
     return rows
+
+
+def mean_value(result: Mapping[str, Any]) -> float:
+    """A run's value per hour: its final network's mean over the evaluation seeds."""
+    return float(np.mean(result["eval_values_per_h"]))
 
 
 def normalised(value: float, ref: Mapping[str, float]) -> float:
@@ -488,7 +493,7 @@ def runs_table(
                 f"{curve[0][1]:.2f}",
                 f"{best[1]:.2f} at {best[0]:,}",
                 f"{curve[-1][1]:.2f}",
-                f"{normalised(float(np.mean(result['eval_values_per_h'])), ref):.3f}",
+                f"{normalised(mean_value(result), ref):.3f}",
                 "stay" if stays else "moves",
             ]
         )
