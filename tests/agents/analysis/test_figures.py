@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-pytest.importorskip("matplotlib")
+pytest.importorskip("matplotlib", reason="figures need the plot extra: pip install -e '.[plot]'")
 import matplotlib.figure
 
 from tavc_agents import learning_runs
