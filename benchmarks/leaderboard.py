@@ -2,7 +2,7 @@
 threshold, auction, greedy, static) on every scenario of the suite (`tavc_env.scenarios`) and its
 evaluation seeds; scores normalised between the scenarios' committed references (0 = random, 1 =
 the model optimum), interquartile means with bootstrap intervals per scenario and over the suite
-(stratified). The study is `tavc_agents.studies.leaderboard`.
+(stratified).
 
 Writes `leaderboard.{md,csv,json}`, `leaderboard.png` and every episode under trials/ into a new
 run folder under runs/ (git ignores it), `--out`, or with `--update-reference`
@@ -11,18 +11,254 @@ benchmarks/results/leaderboard/; `--resume RUN_DIR` continues an interrupted run
     python benchmarks/leaderboard.py            # 8 allocators x 7 scenarios x 20 seeds of 8 h
     python benchmarks/leaderboard.py --quick    # smoke run
     python benchmarks/leaderboard.py --update-reference --figure-only   # redraw the PNG, run nothing
+
+The leaderboard: every allocator of the package on every scenario of the suite
+(`tavc_env.scenarios`), on the scenarios' evaluation seeds, scored as the field reports benchmarks.
+
+Each episode's delivered value per hour (`tavc_env.scenarios.METRIC`) is normalised between the
+scenario's committed references (`benchmarks/results/scenarios/references.json`, the `scenarios`
+study): `(value - random) / (optimum - random)`, random measured in physics and the optimum the
+model's. Per scenario and allocator: the interquartile mean (IQM) of the normalised scores over
+seeds with a percentile bootstrap 95 % interval; over the suite, the IQM of all scores with a
+stratified bootstrap (seeds resampled within each scenario), as rliable computes them (here with
+`scipy.stats.trim_mean` and `scipy.stats.bootstrap`). The learning allocators (TAVC) learn online,
+within each episode, from nothing: their score includes their learning. Deep learners trained
+offline are evaluated on the same seeds by their own scripts and added to the same table.
+
+`--figure-only` redraws `leaderboard.png` from a finished run's `leaderboard.json` (the table's
+IQMs and intervals as reported) without running an episode or writing anything else.
+The script is `benchmarks/leaderboard.py`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
 
-from tavc_agents.experiments.study import run_study
-from tavc_agents.studies import leaderboard as study
+import numpy as np
+
+from tavc_agents.analysis.plots import subplots
+from tavc_agents.analysis.reports import Report, markdown_table
+from tavc_agents.evaluation import (
+    EvaluationSettings,
+    ScoredSettings,
+    allocators,
+    iqm_ci,
+    references,
+    value_per_hour,
+)
+from tavc_agents.experiments.files import read_report
+from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.study import (
+    Outcome,
+    redraw,
+    redraw_source,
+    run_study,
+)
+from tavc_agents.experiments.sweep import TrialSpec
+from tavc_agents.model import load_model
+from tavc_env.scenarios import SCENARIOS
+
+FIGURE = "leaderboard.png"
+PANELS_PER_ROW = 4  # eight panels in two rows stay readable at a page's width
+Row = dict[str, Any]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(EvaluationSettings, ScoredSettings):
+    """The leaderboard's settings (its command line)."""
+
+    reference: ClassVar = "leaderboard"
+    min_seeds: ClassVar = 2  # an interval needs two
+    quick_sizes: ClassVar = {"seeds": 2, "episode_h": 0.5, "resamples": 200}
+    recorded_fields: ClassVar = "scenarios seeds_text episode_text resamples seed"
+
+    quick: bool = False
+    """smoke run: 2 seeds, 0.5-h episodes, 200 resamples"""
+    figure_only: bool = False
+    """run nothing: redraw leaderboard.png from the leaderboard.json already in the output folder"""
+
+
+def specs(s: Settings) -> list[TrialSpec]:
+    """Every episode: scenario by scenario, allocator by allocator, seed by seed. The model-based
+    allocators get the scenario's model at its start values."""
+    out = []
+    for name in s.scenarios:
+        scenario = SCENARIOS[name]
+        values = [c.value for c in scenario.config().circuits]
+        model = load_model(scenario.model).with_values(values)
+        for allocator in allocators(model):
+            for seed in s.seeds_of(scenario):
+                out.append(
+                    TrialSpec(
+                        key=f"{name}__{allocator.name}__{seed}",
+                        allocator=allocator.allocator,
+                        allocator_kwargs=allocator.kwargs,
+                        seed=seed,
+                        env_kwargs={"scenario": name},
+                        convergence_s=0.0,
+                        measured_s=s.episode_s(scenario),
+                        snapshot_every_s=s.episode_s(scenario),
+                        tags={"scenario": name, "allocator": allocator.name, "seed": seed},
+                    )
+                )
+    return out
+
+
+def rows_of(
+    specs_run: Sequence[TrialSpec],
+    results: Mapping[str, TrialResult],
+    refs: Mapping[str, Mapping[str, float]],
+) -> list[Row]:
+    rows = []
+    for spec in specs_run:
+        name, allocator = str(spec.tags["scenario"]), str(spec.tags["allocator"])
+        value = value_per_hour(results[spec.key])
+        ref = refs[name]
+        rows.append(
+            {
+                "scenario": name,
+                "allocator": allocator,
+                "seed": spec.seed,
+                "value_per_h": value,
+                "score": (value - ref["random"]) / (ref["optimum"] - ref["random"]),
+                "wall_s": results[spec.key].wall_s,
+            }
+        )
+    return rows
+
+
+def report(s: Settings, rows: list[Row]) -> Report:
+    rng = np.random.default_rng(s.seed)
+    names = list(dict.fromkeys(r["allocator"] for r in rows))
+    cells: dict[tuple[str, str], tuple[float, float, float]] = {}
+    summary: dict[str, Any] = {}
+    for allocator in names:
+        per_scenario = []
+        for name in s.scenarios:
+            scores = [
+                r["score"] for r in rows if r["allocator"] == allocator and r["scenario"] == name
+            ]
+            per_scenario.append(scores)
+            cells[(allocator, name)] = iqm_ci([scores], s.resamples, rng)
+        cells[(allocator, "suite")] = iqm_ci(per_scenario, s.resamples, rng)
+        summary[allocator] = {
+            key: {"iqm": v[0], "ci": [v[1], v[2]]}
+            for key, v in ((k, cells[(allocator, k)]) for k in (*s.scenarios, "suite"))
+        }
+    order = ranked(names, cells)
+
+    def cell(v: tuple[float, float, float]) -> str:
+        return f"{v[0]:.2f} [{v[1]:.2f}, {v[2]:.2f}]"
+
+    header = ["allocator", *(SCENARIOS[n].id for n in s.scenarios), "suite (IQM, stratified)"]
+    table = [[a, *(cell(cells[(a, n)]) for n in (*s.scenarios, "suite"))] for a in order]
+    seeds = sorted({len(s.seeds_of(SCENARIOS[n])) for n in s.scenarios})
+    wall = sum(r["wall_s"] for r in rows)
+    body = (
+        "Normalised score (0 = random allocation, 1 = the model optimum; the scenarios' committed "
+        "references) of every allocator: interquartile mean over "
+        f"{'/'.join(str(k) for k in seeds)} evaluation seeds per scenario [95 % percentile "
+        f"bootstrap, {s.resamples} resamples; the suite's column resamples seeds within each "
+        "scenario]. Allocators are sorted by the suite's IQM. The TAVC learners learn online "
+        f"within each episode. {len(rows)} episodes, {wall / 60:.1f} min of episode wall time "
+        "in all (one process).\n\n" + markdown_table(header, table)
+    )
+    rep = Report(
+        "leaderboard", "Leaderboard: every allocator on every scenario", body, rows, summary
+    )
+    rep.figures.append((FIGURE, lambda path: draw(path, order, s.scenarios, cells)))
+    return rep
+
+
+Cells = Mapping[tuple[str, str], tuple[float, float, float]]
+"""(allocator, scenario or "suite") -> IQM, interval low, interval high"""
+
+
+def ranked(names: Sequence[str], cells: Cells) -> list[str]:
+    """The allocators, best suite IQM first (ties in `names`' order)."""
+    return sorted(names, key=lambda a: -cells[(a, "suite")][0])
+
+
+def cells_of(summary: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> tuple[list[str], Cells]:
+    """The scenarios and the cells of a written report's summary (`leaderboard.json`), for
+    `--figure-only`: the numbers as the table reports them, nothing recomputed."""
+    cells = {
+        (allocator, key): (float(v["iqm"]), float(v["ci"][0]), float(v["ci"][1]))
+        for allocator, entry in summary.items()
+        for key, v in entry.items()
+    }
+    scenarios = [key for key in next(iter(summary.values())) if key != "suite"]
+    return scenarios, cells
+
+
+def draw(path: Path, order: Sequence[str], scenarios: Sequence[str], cells: Cells) -> None:
+    """One panel per scenario and one for the suite, `PANELS_PER_ROW` to a row: each allocator's
+    IQM with its interval."""
+    keys = [*scenarios, "suite"]
+    ncols = min(PANELS_PER_ROW, len(keys))
+    nrows = math.ceil(len(keys) / ncols)
+    fig, axes = subplots(
+        nrows,
+        ncols,
+        figsize=(2.1 * ncols + 1.4, nrows * (0.28 * len(order) + 1.1) + 0.4),
+        sharey=True,
+        squeeze=False,
+    )
+    y = np.arange(len(order))
+    panels = axes.ravel()
+    for ax in panels[len(keys) :]:  # a last row left short
+        ax.set_visible(False)
+    for k, (ax, key) in enumerate(zip(panels, keys)):
+        values = np.array([cells[(a, key)] for a in order])
+        ax.errorbar(
+            values[:, 0],
+            y,
+            xerr=[values[:, 0] - values[:, 1], values[:, 2] - values[:, 0]],
+            fmt="o",
+            ms=4,
+        )
+        ax.axvline(0.0, color="grey", lw=0.5)
+        ax.axvline(1.0, color="grey", lw=0.5, ls="--")
+        title = "suite" if key == "suite" else SCENARIOS[key].id.removeprefix("tavc/")
+        ax.set_title(title, fontsize=10)
+        ax.tick_params(labelsize=9)
+        if k % ncols == 0:
+            ax.set_ylabel("allocator", fontsize=9)
+        if k + ncols >= len(keys):  # the lowest panel of its column
+            ax.set_xlabel("IQM score", fontsize=9)
+    first = panels[0]  # the y axis is shared: its ticks are every panel's
+    first.set_yticks(y, list(order))
+    first.invert_yaxis()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, format="png")
+
+
+def run(settings: Settings) -> Outcome:
+    """Run (or resume) every episode, then write the table, the per-episode rows and the figure;
+    with `figure_only`, only redraw the figure from the report in the output folder."""
+    s = settings.sized()
+    out = s.out_dir()
+    if s.figure_only:
+        summary = read_report(redraw_source(out / "leaderboard.json"))["summary"]
+        scenarios, cells = cells_of(summary)
+        order = ranked(list(summary), cells)
+        return redraw(out, FIGURE, lambda path: draw(path, order, scenarios, cells))
+    refs = references(s.references)
+    jobs = specs(s)
+    results, provenance = s.run_trials(jobs)
+    rep = report(s, rows_of(jobs, results, refs))
+    written = rep.write(out, provenance)
+    return Outcome(out, written, rep.body)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return run_study(study, argv, __doc__ or "")
+    """The study's command line."""
+    return run_study(sys.modules[__name__], argv, __doc__ or "")
 
 
 if __name__ == "__main__":

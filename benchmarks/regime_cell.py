@@ -26,11 +26,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import arena_runs
 from tavc_agents.experiments.files import write_text
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.study import RESULTS_DIR
 from tavc_agents.experiments.sweep import run_jobs, saved_results
-from tavc_agents.studies import regime_map as rm
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -41,8 +41,10 @@ def _same(a: Any, b: Any) -> bool:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
-    parser.add_argument("--arena", default="dahl2004", choices=sorted(rm.MAPPED))
-    parser.add_argument("--condition", default="softmax_T0.005", choices=sorted(rm.CONDITIONS))
+    parser.add_argument("--arena", default="dahl2004", choices=sorted(arena_runs.MAPPED))
+    parser.add_argument(
+        "--condition", default="softmax_T0.005", choices=sorted(arena_runs.CONDITIONS)
+    )
     parser.add_argument("--trials", type=int, default=400, help="trials 0..N-1 of the cell")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=RESULTS_DIR / "regime_cell")
@@ -53,24 +55,24 @@ def main(argv: Sequence[str] | None = None) -> int:
             "1..400 (the committed cells' size), workers >= 1"
         )
     committed = RESULTS_DIR / "regime_map"
-    kept = rm.Settings(out=committed)
+    kept = arena_runs.Settings(out=committed)
     jobs = [
-        rm.MapTrial(
+        arena_runs.MapTrial(
             args.arena,
             args.condition,
             kept.seed + k,
             kept.convergence_h,
             kept.measured_h,
-            arena_sha=rm.digest(args.arena),
+            arena_sha=arena_runs.digest(args.arena),
         )
         for k in range(args.trials)
     ]
-    reference = saved_results(jobs, rm.TRIALS, committed / "trials")
+    reference = saved_results(jobs, arena_runs.TRIALS, committed / "trials")
     if len(reference) < len(jobs):
         parser.error(f"the committed regime map has {len(reference)} of these {len(jobs)} trials")
     with tempfile.TemporaryDirectory(prefix="regime-cell-") as tmp:
         load_before, wall0 = os.getloadavg(), time.perf_counter()
-        results = run_jobs(jobs, rm.TRIALS, tmp, args.workers, progress_bar=True)
+        results = run_jobs(jobs, arena_runs.TRIALS, tmp, args.workers, progress_bar=True)
         wall, load_after = time.perf_counter() - wall0, os.getloadavg()
     differ = [
         key

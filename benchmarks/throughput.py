@@ -18,23 +18,283 @@ machine's load average is recorded with every row. Reported: speeds, env / repla
 loop (ticks per CPU second, paired by round), peak memory. Goal (issue 24): at 6 robots at least
 0.95 of the bare loop and 0.5 of the replay; the exit status is 1 if it is missed. Writes
 `throughput.{csv,md,json}` into a new run folder under runs/ (git ignores it), `--out`, or with
-`--update-reference` benchmarks/results/throughput/. The study is `tavc_agents.studies.throughput`.
+`--update-reference` benchmarks/results/throughput/.
 
     python benchmarks/throughput.py                # ~3 min
     python benchmarks/throughput.py --dt 0.2 --sizes 6 96 --out benchmarks/results/throughput_dt0.2
     python benchmarks/throughput.py --quick
+
+Throughput of the arena by team size against two yardsticks of the same physics, in CPU time.
+
+For each case (a team size, event-driven or fixed-interval stepping) the PettingZoo env runs with
+random choices (`tavc_agents.experiments.measurement.random_choice_run`), and beside it, in the
+same process and round:
+
+* `floor`: a bare pymunk loop of the same bodies (the engine's `World`: same radius, mass, dt,
+  solver iterations and walls), velocities set once (`physics_floor`);
+* `replay`: the env's own velocity commands of that run, recorded and set tick after tick on a
+  bare `World` (`physics_replay`); it must end exactly where the env ended.
+
+Every figure is CPU seconds of the measuring process (`time.process_time`); each case runs in a
+process of its own, and the cases take turns round after round, so load hits them alike; the
+machine's load average is recorded with every row. The run to profile is `benchmarks/profile_env.py`'s.
 """
 
 from __future__ import annotations
 
+import os
+import resource
+import sys
+import time
 from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
-from tavc_agents.experiments.study import run_study
-from tavc_agents.studies import throughput as study
+import tavc_env
+from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
+from tavc_agents.analysis.stats import mean_ci
+from tavc_agents.experiments.measurement import TEAM_SIZES as SIZES
+from tavc_agents.experiments.measurement import physics_floor, physics_replay, random_choice_run
+from tavc_agents.experiments.measurement import team_config as config_for
+from tavc_agents.experiments.provenance import run_metadata
+from tavc_agents.experiments.study import Outcome, StudySettings, run_study
+from tavc_env.config import ArenaConfig
+
+SIM_HOURS = {6: 5.0, 24: 1.0, 96: 0.25, 384: 0.05}  # per repeat, about a CPU second or less each
+# Goals (issue 24): at 6 robots the public parallel API reaches 95 % of the bare loop's speed
+# and half of its own replayed physics, in CPU time.
+FLOOR_GOAL = 0.95
+REPLAY_GOAL = 0.5
+Row = dict[str, Any]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(StudySettings):
+    """The throughput benchmark's settings (its command line). Each case runs in a process of
+    its own on one core, one at a time, so `workers` can only be 1 and `backend` only local."""
+
+    reference: ClassVar = "throughput"
+    quick_reference_apart: ClassVar = False
+    recorded_fields: ClassVar = "sizes fixed_sizes interval_s repeats=repeat_count quick"
+
+    sizes: tuple[int, ...] = (6, 24, 96)
+    """team sizes (robots) with event-driven stepping, among 6, 24, 96, 384"""
+    fixed_sizes: tuple[int, ...] = (6,)
+    """team sizes also run with fixed-interval stepping (none: ())"""
+    interval_s: float = 1.0
+    """the fixed interval's simulated seconds per env step"""
+    repeats: int = 5
+    """rounds (>= 2, for intervals); each case runs once per round"""
+    dt: float | None = None
+    """physics step (default: the package's)"""
+    quick: bool = False
+    """smoke run: 2 rounds, short runs"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        bad = [n for n in (*self.sizes, *self.fixed_sizes) if n not in SIZES]
+        if bad or not self.sizes:
+            raise ValueError(
+                f"sizes = {list(self.sizes)!r}, fixed_sizes = {list(self.fixed_sizes)!r} is "
+                f"invalid; allowed: one or more sizes (and any fixed sizes) among {list(SIZES)}"
+            )
+        if not self.quick and (not isinstance(self.repeats, int) or self.repeats < 2):
+            raise ValueError(
+                f"repeats = {self.repeats!r} is invalid; allowed: >= 2 (for confidence intervals)"
+            )
+        if not (isinstance(self.interval_s, (int, float)) and self.interval_s > 0):
+            raise ValueError(f"interval_s = {self.interval_s!r} is invalid; allowed: > 0 s")
+        if self.dt is not None:
+            tavc_env.make_config("dahl2004", dt=self.dt)  # names a bad step
+        if self.workers not in (None, 1) or self.backend != "local":
+            raise ValueError(
+                f"workers = {self.workers!r}, backend = {self.backend!r} is invalid; allowed: "
+                "workers 1 and backend local (one case at a time, one core each)"
+            )
+
+    @property
+    def repeat_count(self) -> int:
+        return 2 if self.quick else self.repeats
+
+    @property
+    def hours_scale(self) -> float:
+        return 0.05 if self.quick else 1.0
+
+    @property
+    def cases(self) -> list[tuple[int, float | None]]:
+        """(robots, fixed interval or None for event-driven stepping), in the order they run."""
+        return [(n, None) for n in self.sizes] + [(n, self.interval_s) for n in self.fixed_sizes]
+
+
+def case_name(robots: int, interval_s: float | None) -> str:
+    return f"{robots}" if interval_s is None else f"{robots} every {interval_s:g} s"
+
+
+def run_case(
+    robots: int, interval_s: float | None, rep: int, hours_scale: float, dt: float | None
+) -> list[Row]:
+    """One round of one case (in the case's own process): the env (seed `rep`), its replay and
+    the bare loop with as many ticks, each timed in this process's CPU seconds."""
+    config = config_for(robots, dt)
+    sim_s = SIM_HOURS[robots] * 3600.0 * hours_scale
+    if rep == 0:  # untimed: imports, numba, caches
+        random_choice_run(config, 10**6, min(sim_s, 600.0), interval_s)
+    common = {"case": case_name(robots, interval_s), "robots": robots, "repeat": rep}
+    rows: list[Row] = []
+    # the recording run is untimed (an observer reads every tick); the timed run is the same run
+    recorded = random_choice_run(config, rep, sim_s, interval_s, record=True)
+    measures: list[tuple[str, Any]] = [
+        ("env", lambda: random_choice_run(config, rep, sim_s, interval_s)),
+        ("replay", lambda: physics_replay(config, recorded)),
+        ("floor", lambda: physics_floor(config, rep, int(recorded["ticks"]), each_tick=False)),
+    ]
+    for mode, measure in measures:
+        load = os.getloadavg()[0]
+        found = measure()
+        row = {**common, "mode": mode, "load_1min": load}
+        row.update({k: v for k, v in found.items() if k not in ("start", "commands", "end")})
+        rows.append(row)
+    env = rows[0]
+    if (env["ticks"], env["decisions"]) != (recorded["ticks"], recorded["decisions"]):
+        raise RuntimeError(f"{common['case']}: the timed run differs from the recorded one")
+    for r in rows:
+        r["sim_s_per_cpu_s"] = r["sim_s"] / r["cpu_s"]
+        r["us_per_tick"] = 1e6 * r["cpu_s"] / r["ticks"]
+        r["decisions_per_cpu_s"] = r.get("decisions", 0) / r["cpu_s"]
+        r["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return rows
+
+
+def measure_cases(s: Settings) -> list[Row]:
+    """Every case in a process of its own, kept for all rounds; the cases take turns, one at a
+    time, round after round."""
+    rows: list[Row] = []
+    started = time.perf_counter()
+    with ExitStack() as stack:
+        pools = [stack.enter_context(ProcessPoolExecutor(max_workers=1)) for _ in s.cases]
+        for rep in range(s.repeat_count):
+            for (robots, interval_s), pool in zip(s.cases, pools):
+                job = pool.submit(run_case, robots, interval_s, rep, s.hours_scale, s.dt)
+                rows.extend(job.result())
+            print(f"round {rep + 1} done ({time.perf_counter() - started:.0f} s)", flush=True)
+    return rows
+
+
+def case_findings(rows: Sequence[Row], config: ArenaConfig) -> tuple[list[Any], Row]:
+    """One case's table row and JSON summary: speeds and the env's share of both yardsticks
+    (ticks per CPU second, paired by round)."""
+    by_mode = {m: [r for r in rows if r["mode"] == m] for m in ("env", "replay", "floor")}
+    env, replay, floor = by_mode["env"], by_mode["replay"], by_mode["floor"]
+    speed = mean_ci([r["sim_s_per_cpu_s"] for r in env])
+    to_floor = mean_ci([f["us_per_tick"] / e["us_per_tick"] for e, f in zip(env, floor)])
+    to_replay = mean_ci([p["us_per_tick"] / e["us_per_tick"] for e, p in zip(env, replay)])
+    exact = all(r["exact"] for r in replay)
+    name = env[0]["case"]
+    verdict = "-"
+    if name == "6":
+        ok = to_floor[0] >= FLOOR_GOAL and to_replay[0] >= REPLAY_GOAL and exact
+        verdict = (
+            f"{'PASS' if ok else 'FAIL'} (>= {FLOOR_GOAL:g} of the bare loop, "
+            f">= {REPLAY_GOAL:g} of the replay)"
+        )
+    loads = [r["load_1min"] for r in rows]
+    cells = [
+        name,
+        f"{config.width:g} x {config.height:g} m, {config.n_circuits} circuits",
+        fmt_ci(*speed[:3], 0),
+        fmt_ci(*mean_ci([r["us_per_tick"] for r in env])[:3], 1),
+        fmt_ci(*mean_ci([r["decisions_per_cpu_s"] for r in env])[:3], 0),
+        fmt_ci(*mean_ci([r["us_per_tick"] for r in replay])[:3], 1),
+        fmt_ci(*mean_ci([r["us_per_tick"] for r in floor])[:3], 1),
+        fmt_ci(*to_replay[:3], 3),
+        fmt_ci(*to_floor[:3], 3),
+        "yes" if exact else "NO",
+        f"{min(loads):.1f}-{max(loads):.1f}",
+        f"{max(r['peak_rss_mib'] for r in rows):.0f}",
+        verdict,
+    ]
+    summary = {
+        "sim_s_per_cpu_s": speed[0],
+        "us_per_tick": mean_ci([r["us_per_tick"] for r in env])[0],
+        "ratio_to_replay": to_replay[0],
+        "ratio_to_floor": to_floor[0],
+        "replay_exact": exact,
+        "load_1min": [min(loads), max(loads)],
+        "arena_m": [config.width, config.height],
+        "dt": config.dt,
+        "verdict": verdict,
+    }
+    return cells, summary
+
+
+HEADER = [
+    "case (robots)",
+    "arena",
+    "sim s / CPU s",
+    "us / tick",
+    "decisions / CPU s",
+    "replay us / tick",
+    "bare loop us / tick",
+    "env / replay",
+    "env / bare loop",
+    "replay exact",
+    "load (1 min)",
+    "peak MiB",
+    "goal",
+]
+
+
+def build_report(rows: Sequence[Row], s: Settings) -> Report:
+    names = [case_name(n, i) for n, i in s.cases]
+    found = {
+        name: case_findings([r for r in rows if r["case"] == name], config_for(n, s.dt))
+        for name, (n, _) in zip(names, s.cases)
+    }
+    dt = config_for(6, s.dt).dt
+    body = "\n".join(
+        [
+            f"Physics step dt = {dt:g} s; {s.repeat_count} rounds, mean [95 % CI] over rounds. "
+            "All times are CPU seconds of the measuring process; each case runs in a process of "
+            "its own and the cases take turns, round after round; 'load' is the machine's 1-minute "
+            "load average at the measurements (2 cores). 'env' is the public PettingZoo parallel "
+            "API, every deciding robot choosing at random (event-driven stepping, or one step "
+            f"every {s.interval_s:g} simulated s for 'every'). 'replay': the env's own velocity "
+            "commands of the same run set tick after tick on a bare pymunk world of the same "
+            "bodies (it must end exactly where the env ended: 'replay exact'). 'bare loop': the "
+            "same bodies with velocities set once, pymunk stepping alone (its discs keep hitting "
+            "walls, which costs more than the env's free driving). 'env / replay' and "
+            "'env / bare loop' are ticks per CPU second, env over yardstick, paired by round. "
+            "Peak MiB is the case's process's maximum resident memory.",
+            "",
+            markdown_table(HEADER, [cells for cells, _ in found.values()]),
+        ]
+    )
+    summary = {name: summary for name, (_, summary) in found.items()}
+    return Report("throughput", "Throughput against its own physics", body, list(rows), summary)
+
+
+def run(settings: Settings) -> Outcome:
+    """Measure every case, then write the report."""
+    out = settings.out_dir()
+    provenance = run_metadata(settings=settings.recorded())
+    started = time.perf_counter()
+    rows = measure_cases(settings)
+    provenance["wall_time_s"] = time.perf_counter() - started
+    report = build_report(rows, settings)
+    written = report.write(out, provenance)
+    failed = [
+        f"FAIL: {name} robots: {found['verdict']}"
+        for name, found in report.summary.items()
+        if found["verdict"].startswith("FAIL") or not found["replay_exact"]
+    ]
+    return Outcome(out, written, f"{report.body}\nwrote {out / 'throughput.md'}", failed)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return run_study(study, argv, __doc__ or "")
+    """The study's command line."""
+    return run_study(sys.modules[__name__], argv, __doc__ or "")
 
 
 if __name__ == "__main__":

@@ -10,10 +10,13 @@
 from __future__ import annotations
 
 import contextlib
+import importlib
 import re
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -384,3 +387,21 @@ def check_figure_only(
         run(settings(out=empty, figure_only=True))
     assert list(empty.iterdir()) == []
     return png_size(out / figure)
+
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+NOT_STUDIES = ("arena_runs", "row_check", "profile_env", "regime_cell")
+"""benchmarks/ modules that are not study programs: the modules the studies share, and two
+scripts of their own (a run to profile, one regime-map cell rerun)."""
+
+
+def study_programs() -> dict[str, ModuleType]:
+    """Every study program of benchmarks/ by name (a module with `Settings` and `run`), imported
+    as the tests import them (benchmarks/ is on pytest's pythonpath)."""
+    found = {}
+    for path in sorted(BENCHMARKS.glob("*.py")):
+        if path.stem not in NOT_STUDIES:
+            module = importlib.import_module(path.stem)
+            assert hasattr(module, "Settings") and hasattr(module, "run"), path
+            found[path.stem] = module
+    return found

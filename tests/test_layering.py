@@ -48,12 +48,15 @@ LAYERS: list[tuple[int, str]] = [
     (6, "tavc_agents.envs"),
     (7, "tavc_agents.analysis"),
     (7, "tavc_agents.learning_runs"),  # what the examples that train with a library need
-    (8, "tavc_agents.studies"),
+    (8, "tavc_agents.evaluation"),  # the suite's protocol: episodes, metric, references, IQM
     (9, "tavc_agents.cli"),
     (9, "tavc_agents.__main__"),  # `python -m tavc_agents`: the cli
     (9, "tavc_agents"),  # the package's __init__ (a docstring)
-    (10, "benchmarks"),
+    (10, "benchmarks.arena_runs"),  # what several studies share, beside them
+    (10, "benchmarks.row_check"),
+    (11, "benchmarks"),  # the study programs: they import the package and the shared modules
 ]
+SHARED_BESIDE_STUDIES = ("benchmarks.arena_runs", "benchmarks.row_check")
 # physics, task rules and the twin's engine: must not know gymnasium or PettingZoo
 ENGINE_ONLY = ("tavc_env.engine", "tavc_env.twin.tables", "tavc_env.twin.engine")
 
@@ -98,7 +101,10 @@ def imported_modules(path: Path, name: str) -> set[str]:
 
 
 def own(target: str) -> str | None:
-    """The project module `target` refers to (itself or the package it names), or None."""
+    """The project module `target` refers to (itself or the package it names), or None. A study
+    program imports the modules beside it by their bare names (`import arena_runs`)."""
+    if f"benchmarks.{target.partition('.')[0]}" in MODULES:
+        return f"benchmarks.{target.partition('.')[0]}"
     while target:
         if target in MODULES:
             return target
@@ -156,19 +162,33 @@ def test_no_import_cycles() -> None:
         pytest.fail(f"import cycle: {' -> '.join(error.args[1])}")
 
 
-def test_nothing_imports_the_benchmark_scripts() -> None:
+def test_nothing_in_the_wheel_imports_the_benchmarks() -> None:
     importers = [
         f"{name} imports {target}"
         for name, targets in EDGES.items()
         for target in targets
-        if target.startswith("benchmarks")
+        if target.startswith("benchmarks") and not name.startswith("benchmarks")
     ]
     assert not importers, "\n".join(importers)
     for name, path in MODULES.items():
         if name.startswith("benchmarks"):
             text = path.read_text(encoding="utf-8")
-            for trick in ("sys.path", "runpy", "from _common", "import _common"):
+            for trick in ("sys.path", "runpy", "importlib.import_module"):
                 assert trick not in text, f"{path} uses {trick}"
+
+
+def test_no_study_imports_another_study() -> None:
+    """The study programs are leaves: each imports the package and the shared modules beside the
+    studies, never another study."""
+    crossing = [
+        f"{name} imports {target}"
+        for name, targets in EDGES.items()
+        if name.startswith("benchmarks.")
+        for target in targets
+        if target.startswith("benchmarks.") and target not in SHARED_BESIDE_STUDIES
+    ]
+    assert not crossing, "\n".join(crossing)
+    assert EDGES["benchmarks.passing"] >= {"benchmarks.arena_runs"}  # the check sees bare imports
 
 
 def test_the_engine_knows_nothing_of_rl_libraries() -> None:
@@ -184,7 +204,7 @@ def test_the_layering_test_sees_function_level_imports(tmp_path: Path) -> None:
     would prove nothing)."""
     path = tmp_path / "probe.py"
     path.write_text(
-        "def f():\n    from tavc_agents.studies import common\n    import tavc_env.env\n"
+        "def f():\n    from tavc_agents.experiments import study\n    import tavc_env.env\n"
     )
     found = imported_modules(path, "probe")
-    assert {"tavc_agents.studies", "tavc_agents.studies.common", "tavc_env.env"} <= found
+    assert {"tavc_agents.experiments", "tavc_agents.experiments.study", "tavc_env.env"} <= found

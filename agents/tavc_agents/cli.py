@@ -1,14 +1,13 @@
-"""The `tavc` command: run a trial, record a video, reproduce the paper, run a benchmark.
+"""The `tavc` command: run a trial, record a video, plot saved results.
 
     tavc trial --allocator softmax_tavc --measured-h 2            # one trial, progress bar, summary
     tavc trial --allocator greedy --preset three_circuits_three_classes
     tavc record --allocator random --minutes 5 --out arena.gif
-    tavc reproduce                                          # the paper's Table 1 (study table1)
-    tavc bench allocators --quick                           # any study in tavc_agents.studies
     tavc plot timeline trial.json --out timeline.png        # figures from saved results
 
-`tavc <command> --help` explains each command. `reproduce` and `bench` run the package's studies
-(`tavc_agents.studies`), the same code as the scripts in `benchmarks/`.
+`tavc <command> --help` explains each command. The research studies (the paper's Table 1 among
+them) are programs of the source repository, `python benchmarks/<study>.py`, not commands of the
+installed package.
 """
 
 from __future__ import annotations
@@ -19,8 +18,6 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-from tavc_agents import studies
 
 # The package (physics, numba, the studies) is imported only once a command runs, so that
 # `tavc --help` answers at once (benchmarks/cli_startup.py measures it against `python -c pass`).
@@ -34,21 +31,19 @@ DESCRIPTION = (
 )
 EPILOG = (
     "Examples: tavc trial --allocator softmax_tavc --measured-h 2 | "
-    "tavc record --minutes 5 --out arena.gif | tavc reproduce | tavc bench allocators --quick"
+    "tavc record --minutes 5 --out arena.gif | tavc plot timeline trial.json"
 )
 COMMANDS = {
     "trial": "run one trial and print a summary",
     "record": "record a trial to an animated GIF (or its last frame to a PNG)",
-    "plot": "plot saved results (no rerun): timeline, q, interference, table1, curve",
-    "reproduce": "reproduce the paper's Table 1 (the table1 study)",
-    "bench": "run one of the package's studies (the benchmarks)",
+    "plot": "plot saved results (no rerun): timeline, q, interference, curve",
 }
 
 
 def _allocator(args: argparse.Namespace) -> Any:
     from tavc_agents.experiments.registry import make_allocator
+    from tavc_agents.experiments.study import parse_key_values
     from tavc_agents.model import missing_model, model_path, read_model
-    from tavc_agents.studies.common import parse_key_values
 
     params = parse_key_values(args.param, "--param", "temperature=0.01")
     if args.allocator in NEEDS_MODEL and "model" not in params and "circuits" not in params:
@@ -56,7 +51,7 @@ def _allocator(args: argparse.Namespace) -> Any:
         if problem is not None:
             raise ValueError(
                 f"allocator {args.allocator!r} needs the TAVC model of the arena: {problem}; "
-                "allowed: --model PATH (a model.json written by tavc bench tavc_model)"
+                "allowed: --model PATH (a model.json written by python benchmarks/tavc_model.py)"
             )
         path = model_path(args.preset, args.model)
         try:
@@ -64,7 +59,7 @@ def _allocator(args: argparse.Namespace) -> Any:
         except ValueError as error:
             raise ValueError(
                 f"--model {path} could not be read ({error}); allowed: a model.json written by "
-                "the tavc_model study (tavc bench tavc_model)"
+                "the tavc_model study (python benchmarks/tavc_model.py)"
             ) from None
     return make_allocator(args.allocator, **params)
 
@@ -113,7 +108,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from tavc_agents.experiments.runner import run_trial
-    from tavc_agents.studies.common import arena_overrides
+    from tavc_agents.experiments.study import arena_overrides
     from tavc_env import make_config
 
     allocator = _allocator(args)  # bad parameters and arenas are refused before the run starts
@@ -191,7 +186,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             f"--out {args.out} is invalid; allowed: a .gif (animation) or .png (last frame) file"
         )
     from tavc_agents.experiments.runner import run_trial
-    from tavc_agents.studies.common import arena_overrides
+    from tavc_agents.experiments.study import arena_overrides
     from tavc_env import EnvOptions
 
     frames: list[Any] = []
@@ -239,14 +234,10 @@ def cmd_plot(args: argparse.Namespace) -> int:
             raise ValueError(
                 "plot interference needs an interference.csv: the committed one is part of a "
                 "source checkout, and this package is installed; allowed: a path to one written "
-                "by tavc bench interference"
+                "by python benchmarks/interference.py"
             )
         source = args.source or RESULTS_DIR / "interference.csv"
         plots.interference_curve(_existing(source, "an interference.csv"), args.out)
-    elif args.what == "table1":
-        from tavc_agents.studies import table1
-
-        table1.draw_figure(Path(args.source), args.figure, args.out)
     elif args.what == "curve":
         plots.redraw_learning_curve(Path(args.source), args.out)
     else:
@@ -275,14 +266,6 @@ def _existing(path: str | Path, allowed: str, *, folder: bool = False) -> Path:
             f"{path} is {'not a folder' if folder else 'a folder'}; allowed: {allowed}"
         )
     return path
-
-
-def _run_study(name: str, argv: Sequence[str], prog: str) -> int:
-    """Run study `name` with command-line arguments `argv`, as `benchmarks/<name>.py` does."""
-    from tavc_agents.experiments.study import run_study
-
-    module = studies.load(name)
-    return run_study(module, argv, module.__doc__ or name, prog)
 
 
 class _Version(argparse.Action):
@@ -387,53 +370,24 @@ def parser() -> argparse.ArgumentParser:
         description="Draw a figure from saved results. timeline: which circuit each robot served "
         "over time, one panel per trial file (from `tavc trial --out` or a benchmark's saved "
         "trials); q: the learners' Q(high) - Q(other) over time, fast against slow; interference: "
-        "the interference curve t(n) from benchmarks/results/interference.csv; table1: one of Table "
-        "1's figures drawn from a table1 output folder's saved trials; curve: a deep learner's "
+        "the interference curve t(n) from benchmarks/results/interference.csv; curve: a deep learner's "
         "learning curve from its run folder's curve.csv (docs/examples/*.py --out).",
     )
-    plot.add_argument("what", choices=["timeline", "q", "interference", "table1", "curve"])
+    plot.add_argument("what", choices=["timeline", "q", "interference", "curve"])
     plot.add_argument(
         "source_list",
         nargs="*",
         metavar="FILE",
         help="trial JSON file(s) (timeline, q), interference.csv (default: the committed one), "
-        "a table1 output folder (table1), or a learning run's folder (curve)",
+        "or a learning run's folder (curve)",
     )
     plot.add_argument("--from-h", type=float, default=None, help="timeline: start (hours)")
     plot.add_argument("--to-h", type=float, default=None, help="timeline: end (hours)")
-    plot.add_argument(
-        "--figure",
-        choices=["figure2.png", "performance.png"],
-        default="figure2.png",
-        help="table1: which figure (default: figure2.png, the paper's Figure 2)",
-    )
     plot.add_argument(
         "--out", type=Path, default=Path("plot.png"), help="the PNG to write (and nothing else)"
     )
     plot.set_defaults(run=cmd_plot)
 
-    reproduce = sub.add_parser(
-        "reproduce",
-        help=COMMANDS["reproduce"],
-        description="Run the table1 study with the arguments that follow.",
-        add_help=False,  # `tavc reproduce --help` is the study's own help, every option listed
-    )
-    reproduce.add_argument("script_args", nargs=argparse.REMAINDER)
-    reproduce.set_defaults(
-        run=lambda a: _run_study("table1", _strip(a.script_args), "tavc reproduce")
-    )
-
-    bench = sub.add_parser(
-        "bench",
-        help=COMMANDS["bench"],
-        description="Run study NAME with the arguments that follow (its options: "
-        f"tavc bench NAME -- --help); NAME is one of: {', '.join(sorted(studies.STUDIES))}.",
-    )
-    bench.add_argument("name", help="the study's name, e.g. allocators")
-    bench.add_argument("script_args", nargs=argparse.REMAINDER)
-    bench.set_defaults(
-        run=lambda a: _run_study(a.name, _strip(a.script_args), f"tavc bench {a.name}")
-    )
     for command in sub.choices.values():  # its errors show its own usage line
         command.set_defaults(command_parser=command)
     return top
@@ -477,24 +431,18 @@ def _check_arguments(args: argparse.Namespace) -> None:
     if args.what != "interference" and not args.source_list:
         raise ValueError(
             f"plot {args.what} needs its input; allowed: trial JSON file(s) for timeline and "
-            "q, a table1 output folder for table1, a learning run's folder for curve"
+            "q, a learning run's folder for curve"
         )
     if args.from_h is not None and args.to_h is not None and not args.from_h < args.to_h:
         raise ValueError(
             f"--from-h = {args.from_h} and --to-h = {args.to_h} are invalid together; allowed: "
             "--from-h below --to-h"
         )
-    if args.what == "table1":
-        _existing(args.source, "an output folder of the table1 study", folder=True)
-    elif args.what == "curve":
+    if args.what == "curve":
         _existing(args.source, "a learning run's folder (docs/examples/*.py --out)", folder=True)
     elif args.what in ("timeline", "q"):
         for source in args.source_list:
             _existing(source, "a trial JSON file (tavc trial --out, or a study's saved trial)")
-
-
-def _strip(args: Sequence[str]) -> list[str]:
-    return list(args[1:]) if args and args[0] == "--" else list(args)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -502,16 +450,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not given or given[0] in ("-h", "--help", "--version") or given[0] not in COMMANDS:
         light_parser().parse_args(given)  # help, or the error for a missing or unknown command
     top = parser()
-    # `tavc reproduce --quick` and `tavc bench NAME --trials 3`: the study's own options follow
-    # the command (with or without a `--` first); the study's parser checks them
     args, extra = top.parse_known_args(argv)
     refuse = getattr(args, "command_parser", top).error
-    if extra and not hasattr(args, "script_args"):
+    if extra:
         refuse(f"unrecognized arguments: {' '.join(extra)}")
-    if hasattr(args, "script_args"):
-        args.script_args = [*extra, *args.script_args]
-    if getattr(args, "name", None) is not None and args.name not in studies.STUDIES:
-        refuse(f"study {args.name!r} is unknown; allowed: {sorted(studies.STUDIES)}")
     try:
         _check_arguments(args)
     except ValueError as error:

@@ -361,7 +361,7 @@ def missing_model(preset: str, path: Path | None = None) -> str | None:
     shipped = sorted(p.stem for p in REFERENCE_MODELS.glob("*.json"))
     return (
         f"no TAVC model of {preset!r} ships with the package (it has those of {shipped}); "
-        f"measure one with `tavc bench tavc_model --preset {preset}` and pass its model.json"
+        f"measure one with `python benchmarks/tavc_model.py --preset {preset}` and pass its model.json"
     )
 
 

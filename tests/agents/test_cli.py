@@ -8,14 +8,12 @@ import contextlib
 import importlib
 import importlib.metadata
 import io
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from tavc_agents import studies
 from tavc_agents.cli import main
 from tavc_agents.experiments.runner import TrialResult
 
@@ -42,11 +40,12 @@ def test_console_script_is_installed_and_help_lists_every_command() -> None:
         text=True,
         check=True,
     )
-    for command in ("trial", "record", "reproduce", "bench"):
+    for command in ("trial", "record", "plot"):
         assert command in done.stdout
+    assert "reproduce" not in done.stdout and "bench" not in done.stdout  # studies are programs
 
 
-@pytest.mark.parametrize("command", ["trial", "record", "reproduce", "bench"])
+@pytest.mark.parametrize("command", ["trial", "record", "plot"])
 def test_every_command_has_help(command: str) -> None:
     code, out, _ = run([command, "--help"])
     assert code == 0 and f"usage: tavc {command}" in out
@@ -111,7 +110,7 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             "/nonexistent.json is missing",
         ),
         (["trial", "--allocator", "static", "--model", __file__, *TINY], "could not be read"),
-        (["bench", "nope"], "study 'nope' is unknown; allowed: ["),
+        (["bench", "allocators"], "invalid choice: 'bench'"),  # studies left the wheel
     ],
 )
 def test_bad_arguments_say_what_is_allowed(argv: list[str], message: str) -> None:
@@ -134,16 +133,6 @@ def test_record_writes_an_animation_and_a_frame(tmp_path: Path) -> None:
     assert run([*argv, "--out", str(png)])[0] == 0
     with image.open(png) as im:
         assert im.format == "PNG"
-
-
-def test_reproduce_and_bench_run_the_studies(tmp_path: Path) -> None:
-    assert {"table1", "allocators", "throughput", "vacancy_chain"} <= set(studies.STUDIES)
-    out_dir = tmp_path / "t1"
-    argv = ["reproduce", "--", "--quick", "--workers", "1", "--out", str(out_dir)]
-    code, out, _ = run(argv)
-    assert code == 0 and (out_dir / "table1.md").exists() and "wrote" in out
-    summary = json.loads((out_dir / "table1.json").read_text())
-    assert summary["metadata"]["settings"]["trials"] == 2
 
 
 def test_plots_from_saved_results(tmp_path: Path) -> None:
@@ -173,29 +162,6 @@ def test_plots_from_saved_results(tmp_path: Path) -> None:
         ["plot", "timeline", str(rand), "--from-h", "5", "--out", str(tmp_path / "y.png")]
     )
     assert code == 2 and "is empty" in err
-
-
-def test_plot_table1_writes_exactly_the_figure_asked_for(tmp_path: Path) -> None:
-    pytest.importorskip("matplotlib", reason="plots need the plot extra")
-    out_dir = tmp_path / "t1"
-    argv = ["reproduce", "--", "--quick", "--workers", "1", "--out", str(out_dir)]
-    argv += ["--conditions", "softmax,random", "--set", "source_service_s=12"]
-    assert run(argv)[0] == 0
-    before = {p.name: p.read_bytes() for p in out_dir.rglob("*") if p.is_file()}
-    target = tmp_path / "t1.png"
-    code, out, err = run(["plot", "table1", str(out_dir), "--out", str(target)])
-    assert code == 0, err
-    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {target}" in out
-    # nothing else written, nothing in the output folder touched
-    assert {p.name: p.read_bytes() for p in out_dir.rglob("*") if p.is_file()} == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["t1", "t1.png"]
-    code, _, err = run(
-        ["plot", "table1", str(out_dir), "--figure", "performance.png", "--out", str(target)]
-    )
-    assert code == 0, err
-    code, _, err = run(["plot", "table1", str(tmp_path), "--out", str(tmp_path / "x.png")])
-    assert code == 2 and "an output folder of the table1 study" in err
-    assert not (tmp_path / "x.png").exists()
 
 
 def test_version_and_python_m() -> None:
@@ -258,8 +224,8 @@ def test_outside_a_checkout_reference_results_are_not_assumed(
 ) -> None:
     """What an installed wheel does where a checkout has benchmarks/results (simulated by
     CHECKOUT = None): it refuses to update them and says it has none to read."""
+    import table1
     from tavc_agents.experiments import provenance, study
-    from tavc_agents.studies import table1
 
     assert Path(__file__).resolve().parents[2] == provenance.CHECKOUT  # the tests run in one
     monkeypatch.setattr(provenance, "CHECKOUT", None)
@@ -286,9 +252,3 @@ def test_allocator_choices_are_the_registrys_when_the_command_runs(
     code, out, err = run(["trial", "--allocator", "sticky_after_import", *TINY])
     assert code == 0, err
     assert "sticky_after_import on dahl2004, seed 0" in out
-
-
-def test_reproduce_help_lists_the_studys_options() -> None:
-    code, out, _ = run(["reproduce", "--help"])
-    assert code == 0
-    assert all(option in out for option in ("--trials", "--convergence-h", "--resume", "--out"))

@@ -1,22 +1,20 @@
 """The command line refuses out-of-range hours, seeds and paths before any work (issue 28, item
-5): `tavc trial`, `tavc plot` and every study's settings (`tavc bench`, the benchmark scripts),
+5): `tavc trial`, `tavc plot` and every study's settings (the programs of benchmarks/),
 each in one line with exit code 2, never a traceback from deep inside a trial."""
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
-import pkgutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tavc_agents import studies
 from tavc_agents.experiments import limits
 from tavc_agents.experiments.study import StudySettings
 from tavc_agents.learners.network import Mlp
 from tests.agents.test_cli import TINY, run
+from tests.helpers import study_programs
 
 
 def _one_line_error(command: str, err: str) -> str:
@@ -59,7 +57,6 @@ def trial_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
         ),
         (["plot", "timeline", "/"], "/ is a folder; allowed: a trial JSON file"),
         (["plot", "q", "/"], "/ is a folder; allowed: a trial JSON file"),
-        (["plot", "table1", __file__], "is not a folder; allowed: an output folder of the table1"),
     ],
 )
 def test_out_of_range_values_are_refused_in_one_line(argv: list[str], message: str) -> None:
@@ -111,6 +108,16 @@ def _study_error(err: str) -> str:
     return " ".join(err.replace("│", " ").replace("╭", " ").replace("╰", " ").split())
 
 
+def run_program(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[int, str, str]:
+    """`python benchmarks/ARGV[0].py ARGV[1:]`, in this process: exit code, stdout, stderr."""
+    try:
+        code = study_programs()[argv[0]].main(argv[1:])
+    except SystemExit as stop:
+        code = int(stop.code or 0)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
@@ -125,24 +132,26 @@ def _study_error(err: str) -> str:
     ],
 )
 def test_a_studys_seeds_and_hours_are_refused_before_any_work(
-    argv: list[str], message: str, tmp_path: Path
+    argv: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    code, out, err = run(["bench", *argv, "--out", str(tmp_path / "out")])
+    code, out, err = run_program(capsys, [*argv, "--out", str(tmp_path / "out")])
     assert code == 2
     assert message in _study_error(err)
     assert "Writing to" not in out and not (tmp_path / "out").exists()
 
 
 def test_the_ray_backend_without_ray_is_refused_when_the_settings_are_read(
-    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.setattr(limits, "ray_installed", lambda: False)
-    code, out, err = run(["bench", "table1", "--quick", "--backend", "ray", "--out", str(tmp_path)])
+    argv = ["table1", "--quick", "--backend", "ray", "--out", str(tmp_path)]
+    code, out, err = run_program(capsys, argv)
     assert code == 2 and "Writing to" not in out
     assert "backend = 'ray' is invalid: Ray is not installed (pip install 'tavc-env[ray]')" in (
         _study_error(err)
     )
-    module = studies.load("table1")
+    import table1 as module
+
     with pytest.raises(ValueError, match="backend = 'ray' is invalid"):
         module.Settings(backend="ray", out=tmp_path)
     monkeypatch.setattr(limits, "ray_installed", lambda: True)  # with Ray: accepted
@@ -150,11 +159,9 @@ def test_the_ray_backend_without_ray_is_refused_when_the_settings_are_read(
 
 
 def _every_studys_settings() -> list[type[StudySettings]]:
-    """The settings class of every study module (those behind `tavc bench` and the others the
-    benchmark scripts run: scenarios, leaderboard, deep_leaderboard)."""
+    """The settings class of every study program of benchmarks/."""
     found = []
-    for info in pkgutil.iter_modules(studies.__path__):
-        module = importlib.import_module(f"tavc_agents.studies.{info.name}")
+    for module in study_programs().values():
         settings = getattr(module, "Settings", None)
         if isinstance(settings, type) and issubclass(settings, StudySettings):
             found.append(settings)
@@ -180,7 +187,7 @@ def test_every_studys_seed_and_hour_fields_are_checked() -> None:
 
 
 def test_a_setting_left_to_its_default_is_not_checked() -> None:
-    from tavc_agents.studies import scenarios
+    import scenarios
 
     assert scenarios.Settings(out=Path("unused")).episode_h is None
     with pytest.raises(ValueError, match=r"^episode_h = inf is invalid; allowed: a finite number"):

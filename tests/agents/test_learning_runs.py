@@ -59,8 +59,8 @@ def test_run_options_refuse_bad_values_before_training(
 
 
 def test_every_committed_learning_run_is_whole_and_says_what_it_ran() -> None:
+    from allocators import NETWORK_RUNS, PRESETS
     from tavc_agents.experiments.study import RESULTS_DIR
-    from tavc_agents.studies.allocators import NETWORK_RUNS, PRESETS
 
     folders = sorted((RESULTS_DIR / "marl").iterdir())
     assert len(folders) >= 3

@@ -3,7 +3,7 @@
 - `tavc trial`, `tavc record` and `tavc plot` lines run for real, block by block in one working
   folder, in order, so a documented chain (`tavc trial ... --out trial.json`, then
   `tavc plot timeline trial.json`) cannot break.
-- Study commands (`python benchmarks/<name>.py ...`, `tavc bench <name> ...`, `tavc reproduce ...`)
+- Study commands (`python benchmarks/<name>.py ...`)
   take minutes to hours: their options are parsed and validated by the study's own settings,
   exactly as the command would, without running it.
 - Example scripts (`python docs/examples/<name>.py ...`) train deep networks: their options are
@@ -24,11 +24,11 @@ from pathlib import Path
 
 import pytest
 
-from tavc_agents import studies
 from tavc_agents.experiments.study import parse_settings
 from tavc_agents.learning_runs import RunOptions
 from tavc_env.adapters.benchmarl import task_ids
 from tests.docs.markdown import ROOT, Block, documentation_files, fenced_blocks
+from tests.helpers import study_programs
 
 SKIPPED = ("pip", "mkdocs")  # (and `python -m pytest`)
 
@@ -69,10 +69,6 @@ def study_of(words: list[str]) -> tuple[str, list[str]] | None:
     """(study name, its arguments) if `words` runs a study, else None."""
     if words[:1] == ["python"] and len(words) > 1 and words[1].startswith("benchmarks/"):
         return Path(words[1]).stem, words[2:]
-    if words[:2] == ["tavc", "bench"]:
-        return words[2], [w for w in words[3:] if w != "--"]
-    if words[:2] == ["tavc", "reproduce"]:
-        return "table1", [w for w in words[2:] if w != "--"]
     return None
 
 
@@ -95,8 +91,9 @@ def test_documented_commands_work_as_written(block: Block, tmp_path: Path) -> No
         study = study_of(words)
         if study is not None:
             name, args = study
-            if name in studies.STUDIES:
-                parse_settings(studies.load(name).Settings, args, name)  # refuses a bad option
+            programs = study_programs()
+            if name in programs:
+                parse_settings(programs[name].Settings, args, name)  # refuses a bad option
             else:  # scripts that are not studies (profile_env, reproduce_trials): their help
                 script = ROOT / "benchmarks" / f"{name}.py"
                 assert script.is_file(), f"{block.where}: {script} does not exist"

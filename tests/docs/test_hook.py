@@ -16,13 +16,17 @@ from pathlib import Path
 import pytest
 
 # The docs extra (mkdocs and its plugins) is not in `dev`: without it this module skips, naming it
-pytest.importorskip("mkdocs", reason="the docs hook test needs the docs extra: pip install -e '.[docs]'")
-pytest.importorskip("pymdownx", reason="the docs hook test needs the docs extra: pip install -e '.[docs]'")
+pytest.importorskip(
+    "mkdocs", reason="the docs hook test needs the docs extra: pip install -e '.[docs]'"
+)
+pytest.importorskip(
+    "pymdownx", reason="the docs hook test needs the docs extra: pip install -e '.[docs]'"
+)
 
-from mkdocs.commands.build import build  # noqa: E402
-from mkdocs.config import load_config  # noqa: E402
+from mkdocs.commands.build import build
+from mkdocs.config import load_config
 
-from tests.docs.markdown import ROOT  # noqa: E402
+from tests.docs.markdown import ROOT
 
 HOOK = ROOT / "docs" / "hooks.py"
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from tavc_agents.studies import deep_leaderboard as study
+import deep_leaderboard as study
 
 pytestmark = pytest.mark.marl
 pytest.importorskip("torchrl")

@@ -187,3 +187,18 @@ def physics_floor(config: ArenaConfig, seed: int, ticks: int, each_tick: bool) -
             space.step(dt)
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
     return {"cpu_s": cpu, "wall_s": wall, "sim_s": ticks * dt, "ticks": ticks, "decisions": 0}
+
+
+TEAM_SIZES = {6: None, 24: 8, 96: 32, 384: 128}
+"""The team sizes the throughput benchmarks time: robots -> lanes of `tavc_env.scaled_config`
+(None: the `dahl2004` preset)."""
+
+
+def team_config(robots: int, dt: float | None = None) -> ArenaConfig:
+    """`dahl2004` for 6 robots, `scaled_config(lanes, 3)` for more (`TEAM_SIZES`); with step `dt`
+    if given."""
+    if robots not in TEAM_SIZES:
+        raise ValueError(f"robots = {robots!r} is invalid; allowed: one of {list(TEAM_SIZES)}")
+    lanes = TEAM_SIZES[robots]
+    config = tavc_env.make_config("dahl2004") if lanes is None else tavc_env.scaled_config(lanes, 3)
+    return config if dt is None else config.replace(dt=dt)

@@ -17,22 +17,24 @@ import csv
 import dataclasses
 import datetime as _dt
 import itertools
+import json
 import sys
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
-from typing import Any, ClassVar, Literal, TypeVar
+from typing import Annotated, Any, ClassVar, Literal, TypeVar
 
 import tyro
 
-from tavc_agents.experiments.files import REPORT_MAX_BYTES, read_report, read_text
+from tavc_agents.experiments.files import REPORT_MAX_BYTES, atomic_path, read_report, read_text
 from tavc_agents.experiments.folders import FolderError, check_out_folder, hold_folder
 from tavc_agents.experiments.limits import check_settings
 from tavc_agents.experiments.packs import pack_new
 from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TRIALS, JobKind, SaveError, TrialSpec
+from tavc_env._validation import is_integer, is_number
 
 RESULTS_DIR = (CHECKOUT or Path()) / "benchmarks" / "results"
 """The committed reference results of the source checkout (changed only with `--update-reference`).
@@ -46,6 +48,14 @@ J = TypeVar("J")
 R = TypeVar("R")
 S = TypeVar("S")
 SettingsT = TypeVar("SettingsT", bound="StudySettings")
+
+
+def study_name(settings_type: type) -> str:
+    """The name of the study a settings class belongs to: its program's file name without `.py`
+    (a study run as `python benchmarks/NAME.py` is the module `__main__`)."""
+    module = sys.modules.get(settings_type.__module__)
+    path = getattr(module, "__file__", None)
+    return Path(path).stem if path else settings_type.__module__.rpartition(".")[2]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -114,8 +124,8 @@ class StudySettings:
             )
         if not given and self.run_dir is None:
             reference = self.reference_dir()
-            name = reference.name if reference != RESULTS_DIR else type(self).__module__
-            object.__setattr__(self, "run_dir", new_run_dir(name.rpartition(".")[2]))
+            name = reference.name if reference != RESULTS_DIR else study_name(type(self))
+            object.__setattr__(self, "run_dir", new_run_dir(name))
 
     @property
     def is_quick(self) -> bool:
@@ -368,3 +378,90 @@ def differing_cells(a: Path, b: Path) -> tuple[int, int]:
             total += 1
             differ += (ra[j] if j < len(ra) else None) != (rb[j] if j < len(rb) else None)
     return differ, total
+
+
+# -- what studies share beyond the contract: checks of their settings, comma-separated choices,
+# `KEY=VALUE` arena overrides, and the `--figure-only` redraw of a finished run's figure ----------
+
+SweepOptions = StudySettings
+"""The contract's settings under their earlier name."""
+
+Overrides = Annotated[tuple[str, ...], tyro.conf.UseAppendAction]
+"""The type of a study's `set` field: arena overrides `KEY=VALUE`, one per `--set` (repeatable)."""
+
+
+def at_least(value: object, least: int) -> bool:
+    """An integer (numpy's too, not a bool) >= `least`: a count of trials, seeds, workers."""
+    return is_integer(value) and value >= least  # type: ignore[operator]
+
+
+def positive(value: object) -> bool:
+    """A finite real number > 0 (not a bool): hours, a duration, a rate."""
+    return is_number(value) and value > 0  # type: ignore[operator]
+
+
+def refuse_invalid(settings: object, checks: Sequence[tuple[str, bool, str]]) -> None:
+    """A ValueError for the first (field name, is valid, what is allowed) of `checks` that is not
+    valid, naming the field and its value in `settings`."""
+    for name, ok, allowed in checks:
+        if not ok:
+            raise ValueError(f"{name} = {getattr(settings, name)!r} is invalid; allowed: {allowed}")
+
+
+def choices(settings: object, name: str, known: Collection[str]) -> list[str]:
+    """The comma-separated items of the text field `name` of `settings` (blanks dropped); a
+    ValueError naming the field unless there is at least one and each is one of `known`."""
+    text = getattr(settings, name)
+    chosen = [item.strip() for item in text.split(",") if item.strip()]
+    if not chosen or any(item not in known for item in chosen):
+        raise ValueError(
+            f"{name} = {text!r} is invalid; allowed: a comma-separated subset of {', '.join(known)}"
+        )
+    return chosen
+
+
+def parse_key_values(items: Sequence[str], option: str, example: str) -> dict[str, Any]:
+    """`KEY=VALUE` items (as given to `option`) as a dict: values that parse as JSON (numbers,
+    true/false, lists) are used as such, anything else as a string; whoever receives them then
+    names any key or value it does not accept. A ValueError shows `example` for a malformed one."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"{option} {item!r} is invalid; allowed: KEY=VALUE, e.g. {example}")
+        try:
+            out[key] = json.loads(text)
+        except json.JSONDecodeError:
+            out[key] = text
+    return out
+
+
+def arena_overrides(items: Sequence[str]) -> dict[str, Any]:
+    """Arena overrides from `--set KEY=VALUE` items; the arena's own validation then names any
+    key or value it rejects."""
+    return parse_key_values(items, "--set", "source_service_s=15")
+
+
+def replace(settings: S, **changes: Any) -> S:
+    """`settings` with some fields changed (validated again)."""
+    return dataclasses.replace(settings, **changes)  # type: ignore[type-var]
+
+
+def redraw_source(path: Path) -> Path:
+    """`path`, the report file a `--figure-only` run redraws its figure from; a ValueError naming
+    it when it is not there (such a run computes nothing, so it needs a finished run's report)."""
+    if not Path(path).is_file():
+        raise ValueError(
+            f"figure_only: there is no report {str(path)!r} to redraw from; allowed: the output "
+            "folder of a finished run (--update-reference, --out or --resume)"
+        )
+    return Path(path)
+
+
+def redraw(out: Path, figure: str, draw: Callable[[Path], None]) -> Outcome:
+    """A `--figure-only` run: draw the figure `figure` into `out` with `draw` (replacing it whole,
+    or not at all on an error) and write nothing else: the report it reads stays as it was."""
+    with atomic_path(Path(out) / figure) as tmp:
+        draw(tmp)
+    text = f"Redrew {figure} from the report in {out}/ (nothing run; no other file written)."
+    return Outcome(Path(out), [Path(out) / figure], text)

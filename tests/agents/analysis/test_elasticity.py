@@ -13,12 +13,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+import interference as study
 import tavc_env
+from arena_runs import elasticity_jobs, measure_elasticity
 from tavc_agents.analysis import elasticity as ea
 from tavc_agents.analysis import interference as ia
 from tavc_agents.experiments import elasticity as ee
-from tavc_agents.studies import interference as study
-from tavc_agents.studies.elasticity import elasticity_jobs, measure_elasticity
 from tavc_env.config import lane_circuits
 
 ROOT = Path(__file__).resolve().parents[3]

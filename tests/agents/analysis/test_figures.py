@@ -13,12 +13,15 @@ import pytest
 pytest.importorskip("matplotlib", reason="figures need the plot extra: pip install -e '.[plot]'")
 import matplotlib.figure
 
+import allocators
+import interference
+import leaderboard
+import table1
 from tavc_agents import learning_runs
 from tavc_agents.analysis.interference import plot_interference, read_group_rows
 from tavc_agents.analysis.plots import allocation_timeline, learning_curve, redraw_learning_curve
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.learning_runs import CurveRow, Evaluation, LearningRun
-from tavc_agents.studies import allocators, interference, leaderboard, table1
 from tests.helpers import figure_problems
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 
+import regime_map
 import tavc_env
 from tavc_agents.experiments.runner import Event
 from tavc_agents.experiments.sweep import (
@@ -19,7 +20,6 @@ from tavc_agents.experiments.sweep import (
     digest_text,
     spec_record,
 )
-from tavc_agents.studies import regime_map
 
 RESULTS = Path(__file__).resolve().parents[3] / "benchmarks" / "results"
 PER_FOLDER = 3  # the first files of every results folder: every arena a study ran, at little cost

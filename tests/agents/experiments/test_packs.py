@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from reproduce_trials import Settings as ReproduceSettings
 from tavc_agents.experiments import packs
 from tavc_agents.experiments.files import MANIFEST, CorruptFileError
 from tavc_agents.experiments.folders import LOCK_FILE
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import json_jobs, run_jobs
-from tavc_agents.studies.reproduce import Settings as ReproduceSettings
 
 RAN: list[str] = []
 

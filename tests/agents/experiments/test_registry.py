@@ -271,8 +271,8 @@ def test_the_default_registry_builds_by_name() -> None:
 def test_the_allocators_study_compares_plugins(
     example: ModuleType, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    import allocators
     from tavc_agents.model import load_model
-    from tavc_agents.studies import allocators
 
     registry = fresh()
 

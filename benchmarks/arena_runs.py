@@ -1,0 +1,533 @@
+"""The runs several studies make of an arena, shared beside them (the studies import this module
+and the package, never each other):
+
+- the interference study's fixed-allocation runs (`Job`, `RUNS`): f fast and s slow robots held on
+  their circuits, reduced to group rows;
+- the elasticity e of any arena, measured from those runs: `measure_elasticity(config)` runs the
+  cells e needs (`tavc_agents.experiments.elasticity`: f fast and s slow robots on circuit 0, for
+  (1, 0), (0, 1) and f, s in 1..3) and returns e with its bootstrap interval over seeds
+  (`tavc_agents.analysis.elasticity`);
+- the regime family: the arenas and learner conditions of the regime map, the passing test, the
+  twin audit and the twin studies, their twin tables (`TABLES`) and their trials (`TRIALS`) on the
+  physics or on the twin, and the cell statistics those studies report.
+
+    measure_elasticity(tavc_env.preset("dahl2004_competence"), seeds=range(3), hours=2.0)
+
+For a dahl2004 preset the elasticity runs are exactly the interference study's cross runs of that
+preset, so with the same seeds and settings e is the one its report gives.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import json
+import math
+import re
+import tempfile
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+from scipy import stats
+
+import tavc_env
+from tavc_agents.analysis import interference as ia
+from tavc_agents.analysis.elasticity import Elasticity, elasticity, seed_tables
+from tavc_agents.analysis.measures import measure
+from tavc_agents.analysis.stats import mean_ci, ratio_ci
+from tavc_agents.experiments.elasticity import CELLS, cross_allocation
+from tavc_agents.experiments.measurement import FixedAllocation, run_fixed
+from tavc_agents.experiments.registry import make_allocator
+from tavc_agents.experiments.runner import env_arguments, run_trial
+from tavc_agents.experiments.study import (
+    StudySettings,
+    at_least,
+    choices,
+    positive,
+    refuse_invalid,
+    replace,
+)
+from tavc_agents.experiments.sweep import arena_digest, json_jobs, run_jobs
+from tavc_agents.experiments.twin_batch import Learner
+from tavc_env.config import ArenaConfig
+from tavc_env.twin import InterferenceTables, build_tables
+
+ELASTICITY_BOOT_SEED = 2004
+"""the Generator of the elasticity's bootstrap (the interference study's)"""
+
+BOOT_SEED = ELASTICITY_BOOT_SEED
+"""the seed of the bootstrap's Generator when none is given (the interference study's)"""
+
+
+def elasticity_jobs(
+    config: ArenaConfig,
+    seeds: Iterable[int],
+    hours: float,
+    warmup_min: float,
+    skip_first: int,
+) -> list[Job]:
+    """The interference study's jobs for the runs e needs in `config`'s arena, one per cell and
+    seed."""
+    if not (math.isfinite(hours) and hours > 0):
+        raise ValueError(f"hours = {hours!r} is invalid; allowed: > 0")
+    if not (math.isfinite(warmup_min) and warmup_min >= 0):
+        raise ValueError(f"warmup_min = {warmup_min!r} is invalid; allowed: >= 0")
+    if not (isinstance(skip_first, int) and skip_first >= 0):
+        raise ValueError(f"skip_first = {skip_first!r} is invalid; allowed: an integer >= 0")
+    jobs = []
+    for seed in seeds:
+        for f, s in CELLS:
+            alloc = cross_allocation(
+                config,
+                f,
+                s,
+                seed=seed,
+                hours=hours,
+                warmup_s=warmup_min * 60.0,
+                skip_first=skip_first,
+            )
+            alloc.config()  # a bad arena is refused before any run
+            fields = {x.name: getattr(alloc, x.name) for x in dataclasses.fields(FixedAllocation)}
+            jobs.append(Job(experiment="cross", label=ia.cross_label(f, s), **fields))
+    return jobs
+
+
+def measure_elasticity(
+    config: ArenaConfig,
+    seeds: Iterable[int] = range(5),
+    hours: float = 3.0,
+    *,
+    warmup_min: float = 10.0,
+    skip_first: int = 2,
+    workers: int | None = None,
+    out: Path | None = None,
+    rng: np.random.Generator | None = None,
+) -> Elasticity:
+    """e of `config`'s arena with a 95 % percentile-bootstrap interval over `seeds`.
+
+    Each seed runs the 11 cells e needs for `hours` simulated hours (a task counts if decided at
+    or after `warmup_min` minutes and not among the robot's first `skip_first`), the defaults
+    being the interference study's. `workers`: processes (default: all cores). `out`: a folder
+    that keeps the runs (a later call with the same settings resumes them; default: a temporary
+    folder). `rng`: the bootstrap's Generator (default: seeded with `BOOT_SEED`)."""
+    seed_list = list(seeds)
+    if not seed_list or not all(isinstance(s, int) and s >= 0 for s in seed_list):
+        raise ValueError(f"seeds = {seed_list!r} is invalid; allowed: one or more integers >= 0")
+    jobs = elasticity_jobs(config, seed_list, hours, warmup_min, skip_first)
+    with tempfile.TemporaryDirectory(prefix="elasticity-") as tmp:
+        results = run_jobs(jobs, RUNS, out if out is not None else tmp, workers)
+    rows = [r for job in jobs for r in results[job_key(job)]["rows"]]
+    boot = rng if rng is not None else np.random.default_rng(BOOT_SEED)
+    return elasticity(seed_tables(rows, seed_list), boot)
+
+
+# -- the interference study's runs (f fast and s slow robots held on circuits) ---------------------
+@dataclass(frozen=True)
+class Job:
+    """One run: which experiment (t_n | switch | switch_lone | cross) and allocation it is."""
+
+    experiment: str
+    preset: str
+    circuit_of: tuple[int, ...]  # each robot's circuit (the switcher's first circuit)
+    seed: int
+    hours: float
+    warmup_s: float
+    skip_first: int
+    switcher: int = -1
+    switch_every: int = 3
+    speeds: tuple[float, ...] | None = None
+    label: str = ""
+    arena: tuple[tuple[str, Any], ...] = ()  # ArenaConfig overrides (--set)
+
+    def allocation(self) -> FixedAllocation:
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(FixedAllocation)}
+        return FixedAllocation(**fields)
+
+
+def run_job(job: Job) -> dict[str, Any]:
+    """One run reduced to its per-group rows (JSON data, what the sweep saves)."""
+    return {"rows": ia.group_rows(run_fixed(job.allocation()), job.experiment, job.label)}
+
+
+def job_key(job: Job) -> str:
+    label = re.sub(r"[^A-Za-z0-9_.=-]+", "-", job.label).strip("-")
+    return f"{job.experiment}_{label}_s{job.seed}"
+
+
+RUNS = json_jobs(run_job, job_key, unit="run")
+
+
+# -- the regime family: arenas, learner conditions, twin tables and trials ----------------------
+ARENAS: Mapping[str, Mapping[str, Any]] = {
+    "dahl2004": {"preset": "dahl2004"},
+    "dahl2004_instant_docks": {
+        "preset": "dahl2004",
+        "source_service_s": 0.0,
+        "sink_service_s": 0.0,
+    },
+    "dahl2004_competence": {"preset": "dahl2004_competence"},
+    "dahl2004_light_stations": {"preset": "dahl2004_light_stations"},
+    "dahl2004_congestion": {"preset": "dahl2004_congestion"},
+    "dahl2004_bays": {"preset": "dahl2004_bays"},
+    "dahl2004_passing": {"preset": "dahl2004_passing"},
+}
+"""Arena name -> `tavc_env.parallel_env` keyword arguments (a preset and its overrides)."""
+MAPPED = tuple(a for a in ARENAS if a != "dahl2004_passing")
+"""the arenas of the committed map; `dahl2004_passing` has its own decisive test
+(`tavc_agents.studies.passing`), which runs its cells through this module's jobs"""
+
+TEMPERATURES = (0.002, 0.005, 0.01, 0.02)
+EPSILON = 0.1
+DECISIVE = (
+    ("dahl2004_congestion", 0.005),
+    ("dahl2004_congestion", 0.01),
+    ("dahl2004", 0.005),
+    ("dahl2004", 0.01),
+)
+"""(arena, softmax temperature) of the cells that decide the question, in the order they run."""
+
+Z_POWER = stats.norm.ppf(0.975) + stats.norm.ppf(0.80)  # two-sided 5 %, 80 % power
+Engine = Literal["physics", "twin"]
+Row = dict[str, Any]
+
+
+def softmax_condition(temperature: float) -> str:
+    return f"softmax_T{temperature:g}"
+
+
+CONDITIONS: Mapping[str, tuple[str, Mapping[str, Any]]] = {
+    **{
+        softmax_condition(t): ("softmax_tavc", {"temperature": t, "init": "scaled"})
+        for t in TEMPERATURES
+    },
+    "epsilon_0.1": ("epsilon_tavc", {"epsilon": EPSILON, "init": "scaled"}),
+    "random": ("random", {}),
+}
+"""Condition name -> (allocator, its parameters)."""
+
+
+QUICK_DESIGN: Mapping[str, Any] = {
+    "convergence_h": 0.3,
+    "measured_h": 0.2,
+    "e_seeds": 2,
+    "e_hours": 0.4,
+    "table_seeds": 2,
+    "table_hours": 0.4,
+}
+"""`CellDesign`'s sizes in a smoke run (`--quick`)"""
+
+
+@dataclass(frozen=True, kw_only=True)
+class CellDesign(StudySettings):
+    """How an arena's cells are made: the trials' periods and seeds, and the runs that measure the
+    arena's e and twin tables (the regime map's, and the passing arena's decisive test's)."""
+
+    convergence_h: float = 15.0
+    """convergence period, simulated hours"""
+    measured_h: float = 5.0
+    """measured period, simulated hours"""
+    e_seeds: int = 5
+    """seeds of each arena's elasticity runs"""
+    e_hours: float = 3.0
+    """simulated hours per elasticity run"""
+    table_seeds: int = 3
+    """seeds of each arena's twin-table runs"""
+    table_hours: float = 1.0
+    """simulated hours per twin-table run"""
+    seed: int = 0
+    """trial k of every cell uses seed + k"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        refuse_invalid(
+            self,
+            [
+                ("convergence_h", positive(self.convergence_h), "a finite number > 0"),
+                ("measured_h", positive(self.measured_h), "a finite number > 0"),
+                ("e_seeds", at_least(self.e_seeds, 2), "an integer >= 2"),
+                ("e_hours", positive(self.e_hours), "a finite number > 0"),
+                ("table_seeds", at_least(self.table_seeds, 1), "an integer >= 1"),
+                ("table_hours", positive(self.table_hours), "a finite number > 0"),
+                ("seed", at_least(self.seed, 0), "an integer >= 0"),
+            ],
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings(CellDesign):
+    """The regime map's settings (its command line)."""
+
+    reference: ClassVar = "regime_map"
+    quick_sizes: ClassVar = {**QUICK_DESIGN, "trials": 2, "decisive_trials": 3}
+    recorded_fields: ClassVar = (
+        "arenas=arena_list trials decisive_trials decisive_cells twin_trials convergence_h "
+        "measured_h e_seeds e_hours table_seeds table_hours seed"
+    )
+
+    arenas: str = ",".join(MAPPED)
+    """comma-separated subset of the arenas dahl2004, dahl2004_instant_docks, dahl2004_competence,
+    dahl2004_light_stations, dahl2004_congestion, dahl2004_bays"""
+    trials: int = 60
+    """physics trials per cell"""
+    decisive_trials: int = 400
+    """physics trials in the cells that decide the question (softmax T = 0.005 and 0.01 on
+    dahl2004_congestion and dahl2004)"""
+    twin_trials: int = 100
+    """model-twin trials per cell (0: no twin)"""
+    quick: bool = False
+    """smoke run: 2 trials (3 in decisive cells, 2 twin) of 0.3 + 0.2 h, short e and table runs"""
+    interim: bool = False
+    """run no trial: write `regime_map_interim.*` from the trials saved so far (an unfinished
+    sweep; every cell states its N, and cells with fewer than 2 trials are left out)"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        choices(self, "arenas", ARENAS)  # an unknown arena is refused
+        checks = [
+            ("trials", at_least(self.trials, 2), "an integer >= 2"),
+            ("decisive_trials", at_least(self.decisive_trials, 2), "an integer >= 2"),
+            ("twin_trials", at_least(self.twin_trials, 0), "an integer >= 0"),
+        ]
+        refuse_invalid(self, checks)
+
+    @property
+    def arena_list(self) -> list[str]:
+        return choices(self, "arenas", ARENAS)
+
+    @property
+    def decisive_cells(self) -> list[str]:
+        return [f"{a} {softmax_condition(t)}" for a, t in DECISIVE]
+
+    def sized(self) -> Settings:
+        """These settings with `--quick`'s sizes applied (and at most 2 twin trials)."""
+        sized = super().sized()
+        return replace(sized, twin_trials=min(self.twin_trials, 2)) if self.quick else sized
+
+    def trials_in(self, arena: str, condition: str) -> int:
+        decisive = {(a, softmax_condition(t)) for a, t in DECISIVE}
+        return self.decisive_trials if (arena, condition) in decisive else self.trials
+
+
+def digest(arena: str) -> str:
+    """The digest of the arena's configuration (`tavc_agents.experiments.sweep.arena_digest`)."""
+    return arena_digest(ARENAS[arena])
+
+
+def arena_config(arena: str) -> tavc_env.ArenaConfig:
+    kwargs = dict(ARENAS[arena])
+    return tavc_env.make_config(kwargs.pop("preset"), **kwargs)
+
+
+# -- jobs ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TablesJob:
+    """Measure one arena's twin tables. `arena_sha` is the digest of the arena's configuration,
+    so a stored result is not resumed for an arena whose name now means another configuration."""
+
+    arena: str
+    seeds: tuple[int, ...]
+    hours: float
+    arena_sha: str = ""
+
+
+def run_tables(job: TablesJob) -> dict[str, Any]:
+    return build_tables(arena_config(job.arena), seeds=job.seeds, hours=job.hours).to_dict()
+
+
+TABLES = json_jobs(run_tables, lambda job: f"tables_{job.arena}", unit="arena")
+
+
+@dataclass(frozen=True)
+class MapTrial:
+    """One trial of one cell, on the physics or on the twin (whose tables travel with the job and
+    are recorded by their digest)."""
+
+    arena: str
+    condition: str
+    seed: int
+    convergence_h: float
+    measured_h: float
+    engine: Engine = "physics"
+    tables_sha256: str = ""
+    arena_sha: str = ""  # the arena configuration's digest (see `TablesJob`)
+    tables: Mapping[str, Any] | None = field(default=None, compare=False, repr=False)
+
+
+def tables_digest(tables: Mapping[str, Any]) -> str:
+    return hashlib.sha256(json.dumps(tables, sort_keys=True).encode()).hexdigest()
+
+
+def trial_key(job: MapTrial) -> str:
+    return f"{job.arena}__{job.condition}__{job.engine}__seed{job.seed}"
+
+
+def run_map_trial(job: MapTrial) -> dict[str, Any]:
+    """Run `job` and return its compact record: the measures of `tavc_agents.analysis.measures`."""
+    allocator, params = CONDITIONS[job.condition]
+    factory = None
+    if job.engine == "twin":
+        assert job.tables is not None, "a twin trial needs its tables"
+        tables = InterferenceTables.from_dict(job.tables)
+        factory = functools.partial(tavc_env.twin_parallel_env, tables=tables)
+    started = time.perf_counter()
+    result = run_trial(
+        make_allocator(allocator, **params),
+        seed=job.seed,
+        convergence_s=job.convergence_h * 3600.0,
+        measured_s=job.measured_h * 3600.0,
+        snapshot_every_s=(job.convergence_h + job.measured_h) * 3600.0,
+        env_factory=factory,
+        **env_arguments(ARENAS[job.arena]),
+    )
+    m = measure(result)
+    return {
+        "fast_share": m.fast_share,
+        "slow_share": m.slow_share,
+        "performance": m.performance,
+        "q_gap_fast": m.q_gap_fast,
+        "q_gap_slow": m.q_gap_slow,
+        "states_pct": {f"{f}:{s}": round(v, 4) for (f, s), v in sorted(m.states.items())},
+        "deliveries": len(result.delivery_time_s),
+        "jams": result.jams,
+        "sim_s": round(result.end_s, 1),
+        "wall_s": round(time.perf_counter() - started, 2),
+    }
+
+
+TRIALS = json_jobs(run_map_trial, trial_key, unit="trial", omit=("tables",))
+
+
+def physics_trials(s: Settings) -> list[MapTrial]:
+    """The physics trials: the decisive cells first (in `DECISIVE` order, seed by seed within
+    each arena), then the other cells seed by seed, so that a sweep stopped early leaves whole
+    seeds in every cell it reached."""
+
+    def trial(arena: str, condition: str, k: int) -> MapTrial:
+        return MapTrial(
+            arena, condition, s.seed + k, s.convergence_h, s.measured_h, arena_sha=digest(arena)
+        )
+
+    arenas = s.arena_list
+    decisive = [(a, softmax_condition(t)) for a, t in DECISIVE if a in arenas]
+    jobs = []
+    for arena in dict.fromkeys(a for a, _ in decisive):
+        cells = [c for a, c in decisive if a == arena]
+        jobs += [trial(arena, c, k) for k in range(s.decisive_trials) for c in cells]
+    rest = [(a, c) for a in arenas for c in CONDITIONS if (a, c) not in decisive]
+    jobs += [trial(a, c, k) for k in range(s.trials) for a, c in rest]
+    return jobs
+
+
+def twin_trials(s: Settings, tables: Mapping[str, Mapping[str, Any]]) -> list[MapTrial]:
+    return [
+        MapTrial(
+            a,
+            c,
+            s.seed + k,
+            s.convergence_h,
+            s.measured_h,
+            "twin",
+            tables_digest(tables[a]),
+            digest(a),
+            tables[a],
+        )
+        for k in range(s.twin_trials)
+        for a in s.arena_list
+        for c in CONDITIONS
+    ]
+
+
+# -- analysis -----------------------------------------------------------------------------------
+def _values(records: Sequence[Mapping[str, Any]], key: str) -> list[float]:
+    return [float(r[key]) for r in records]
+
+
+def diff_of(records: Sequence[Mapping[str, Any]]) -> list[float]:
+    """Per trial, the fast robots' share of time on the high-value circuit minus the slow ones'."""
+    return [float(r["fast_share"]) - float(r["slow_share"]) for r in records]
+
+
+def minimal_detectable(values: Sequence[float]) -> float:
+    """The smallest mean effect that `len(values)` trials of this spread detect with 80 % power
+    in a two-sided 5 % test: (z_0.975 + z_0.80) sd / sqrt(n)."""
+    if len(values) < 2:
+        return math.nan
+    return float(Z_POWER * np.std(values, ddof=1) / math.sqrt(len(values)))
+
+
+def cell_row(records: Sequence[Mapping[str, Any]], random: Sequence[Mapping[str, Any]]) -> Row:
+    """One engine's summary of one cell (against that engine's random cell of the same arena)."""
+    diff = diff_of(records)
+    d, d_lo, d_hi, n = mean_ci(diff)
+    s30, s30_lo, s30_hi, _ = mean_ci([r["states_pct"]["3:0"] for r in records])
+    q, q_lo, q_hi, _ = mean_ci([float(r["q_gap_fast"]) - float(r["q_gap_slow"]) for r in records])
+    perf, perf_lo, perf_hi, _ = mean_ci(_values(records, "performance"))
+    ratio = (
+        ratio_ci(_values(records, "performance"), _values(random, "performance"))
+        if len(random) >= 2
+        else (math.nan,) * 3
+    )
+    return {
+        "trials": n,
+        "fast_share": float(np.mean(_values(records, "fast_share"))),
+        "slow_share": float(np.mean(_values(records, "slow_share"))),
+        "fast_minus_slow": d,
+        "fast_minus_slow_lo": d_lo,
+        "fast_minus_slow_hi": d_hi,
+        "fast_minus_slow_sd": float(np.std(diff, ddof=1)) if n >= 2 else math.nan,
+        "detectable_80": minimal_detectable(diff),
+        "time_3_0_pct": s30,
+        "time_3_0_lo": s30_lo,
+        "time_3_0_hi": s30_hi,
+        "q_gap_fast_minus_slow": q,
+        "q_gap_lo": q_lo,
+        "q_gap_hi": q_hi,
+        "performance": perf,
+        "performance_lo": perf_lo,
+        "performance_hi": perf_hi,
+        "ratio_to_random": ratio[0],
+        "ratio_lo": ratio[1],
+        "ratio_hi": ratio[2],
+        "jams": int(sum(int(r["jams"]) for r in records)),
+        "wall_s": float(sum(float(r["wall_s"]) for r in records)),
+    }
+
+
+def welch_difference(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
+    """Mean of `a` minus mean of `b` with its Welch 95 % interval (nan where undefined)."""
+    if len(a) < 2 or len(b) < 2:
+        return (math.nan, math.nan, math.nan)
+    res = stats.ttest_ind(a, b, equal_var=False)
+    ci = res.confidence_interval(0.95)
+    return (float(np.mean(a) - np.mean(b)), float(ci.low), float(ci.high))
+
+
+def overlap(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    return a[0] <= b[1] and b[0] <= a[1]
+
+
+def direction(row: Row) -> str:
+    """The paper's direction (interval above 0), reversed (below 0) or not detectable."""
+    lo, hi = row["fast_minus_slow_lo"], row["fast_minus_slow_hi"]
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return "undetermined"
+    if lo > 0:
+        return "paper's direction"
+    if hi < 0:
+        return "reversed"
+    return "not detectable"
+
+
+def learner_of(condition: str) -> Learner:
+    """The batched learner of a regime-map condition."""
+    allocator, params = CONDITIONS[condition]
+    if allocator == "random":
+        return Learner("random")
+    if allocator == "softmax_tavc":
+        return Learner("softmax", float(params["temperature"]))
+    return Learner("epsilon", float(params["epsilon"]))

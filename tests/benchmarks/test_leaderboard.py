@@ -1,0 +1,63 @@
+"""The leaderboard: the interquartile mean and its stratified bootstrap, a short run end to end
+(every allocator on two scenarios, normalised by the committed references), and the redraw of the
+committed figure (`--figure-only`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import leaderboard as study
+from tavc_agents.experiments.study import RESULTS_DIR
+from tests.helpers import check_figure_only
+
+
+def test_the_iqm_is_the_mean_of_the_middle_half() -> None:
+    assert study.iqm([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 100.0]) == pytest.approx(3.5)
+    assert study.iqm([1.0, 2.0, 3.0, 4.0]) == pytest.approx(2.5)
+
+
+def test_the_stratified_interval_holds_the_point_and_narrows_with_more_seeds() -> None:
+    rng = np.random.default_rng(0)
+    few = [list(rng.normal(0.5, 0.2, 8)), list(rng.normal(0.8, 0.2, 8))]
+    many = [list(rng.normal(0.5, 0.2, 200)), list(rng.normal(0.8, 0.2, 200))]
+    point, low, high = study.iqm_ci(few, 2000, np.random.default_rng(1))
+    assert low <= point <= high
+    _, low_many, high_many = study.iqm_ci(many, 2000, np.random.default_rng(1))
+    assert high_many - low_many < high - low
+    # a constant group has no spread to resample
+    assert study.iqm_ci([[0.3, 0.3], [0.3, 0.3]], 200, np.random.default_rng(0)) == (0.3, 0.3, 0.3)
+
+
+def test_a_short_run_scores_every_allocator_on_every_scenario(tmp_path: Path) -> None:
+    settings = study.Settings(
+        quick=True, scenarios=("bad_start", "breakdowns"), workers=1, out=tmp_path
+    )
+    outcome = study.run(settings)
+    summary = json.loads((tmp_path / "leaderboard.json").read_text())["summary"]
+    assert {"random", "stay", "softmax_tavc", "epsilon_tavc", "static", "greedy"} <= set(summary)
+    for entry in summary.values():
+        assert set(entry) == {"bad_start", "breakdowns", "suite"}
+        for cell in entry.values():
+            assert cell["ci"][0] <= cell["iqm"] + 1e-12 <= cell["ci"][1] + 2e-12
+    # stay never leaves the crowded start: below random there, by the references
+    assert summary["stay"]["bad_start"]["iqm"] < 0.0
+    assert "tavc/bad_start-v0" in outcome.text
+
+
+def test_settings_refuse_a_missing_reference_and_one_seed(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="references"):
+        study.Settings(references=tmp_path / "none.json")
+    with pytest.raises(ValueError, match="seeds"):
+        study.Settings(seeds=1)
+
+
+def test_figure_only_redraws_the_committed_figure_two_rows_of_four(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib", reason="figures need the plot extra")
+    committed = RESULTS_DIR / "leaderboard"
+    width, height = check_figure_only(study.run, study.Settings, committed, study.FIGURE, tmp_path)
+    # eight panels in two rows: readable at a page's width (one row of eight was 2112 x 516)
+    assert width <= 1300 and height > 0.6 * width
