@@ -141,8 +141,8 @@ class Settings(StudySettings):
                 ("resamples", at_least(self.resamples, 1), "an integer >= 1"),
                 (
                     "regime_map_dir",
-                    (Path(self.regime_map_dir) / "arena_runs.csv").is_file(),
-                    "a regime map's results folder (with arena_runs.csv)",
+                    (Path(self.regime_map_dir) / "regime_map.csv").is_file(),
+                    "a regime map's results folder (with regime_map.csv)",
                 ),
             ],
         )
@@ -298,7 +298,7 @@ def break_even(
 # -- the figure's other sources -----------------------------------------------------------------
 def physics_points(regime_map_dir: Path) -> list[PhysicsPoint]:
     """The regime map's physics cells of `CONDITIONS`, each at its arena's measured e."""
-    rows = list(read_csv(Path(regime_map_dir) / "arena_runs.csv"))
+    rows = list(read_csv(Path(regime_map_dir) / "regime_map.csv"))
     return [
         PhysicsPoint(
             r["condition"],

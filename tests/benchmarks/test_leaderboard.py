@@ -11,13 +11,14 @@ import numpy as np
 import pytest
 
 import leaderboard as study
+from tavc_agents import evaluation
 from tavc_agents.experiments.study import RESULTS_DIR
 from tests.helpers import check_figure_only
 
 
 def test_the_iqm_is_the_mean_of_the_middle_half() -> None:
-    assert study.iqm([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 100.0]) == pytest.approx(3.5)
-    assert study.iqm([1.0, 2.0, 3.0, 4.0]) == pytest.approx(2.5)
+    assert evaluation.iqm([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 100.0]) == pytest.approx(3.5)
+    assert evaluation.iqm([1.0, 2.0, 3.0, 4.0]) == pytest.approx(2.5)
 
 
 def test_the_stratified_interval_holds_the_point_and_narrows_with_more_seeds() -> None:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import arena_runs
 import regime_map as rm
 from tavc_agents.analysis.elasticity import Elasticity
 
@@ -32,7 +33,7 @@ def test_bad_settings_are_refused_naming_the_field_and_what_is_allowed() -> None
 def test_every_arena_is_valid_and_the_congestion_arena_is_the_preset() -> None:
     import tavc_env
 
-    for arena in rm.ARENAS:
+    for arena in arena_runs.ARENAS:
         assert rm.arena_config(arena).n_robots == 6
     assert rm.arena_config("dahl2004_congestion") == tavc_env.preset("dahl2004_congestion")
     assert rm.arena_config("dahl2004_instant_docks").source_service_s == 0.0
@@ -70,7 +71,7 @@ def test_a_twin_trial_records_its_tables_by_digest_not_in_full() -> None:
     assert len(jobs) == 2 * len(rm.CONDITIONS)
     record = rm.TRIALS.record(jobs[0])
     assert "tables" not in record
-    assert record["tables_sha256"] == rm.tables_digest(tables)
+    assert record["tables_sha256"] == arena_runs.tables_digest(tables)
     assert record["engine"] == "twin"
     other = rm.twin_trials(s, {"dahl2004": {**tables, "cells": [1, 2, 4]}})
     assert rm.TRIALS.record(other[0]) != record  # changed tables do not resume

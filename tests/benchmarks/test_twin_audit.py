@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+import arena_runs
 import tavc_env
 import twin_audit as study
 from tavc_agents.experiments.study import RESULTS_DIR
@@ -67,7 +68,7 @@ def test_its_tables_are_the_regime_maps() -> None:
     stored = RESULTS_DIR / "regime_map" / "twin_tables" / "tables_dahl2004.json"
     record = json.loads(stored.read_text())["record"]
     assert record["seeds"] == list(seeds) and record["hours"] == hours
-    for arena in study.regime_map.MAPPED:  # measured again by the audit: the very same numbers
+    for arena in arena_runs.MAPPED:  # measured again by the audit: the very same numbers
         name = f"tables_{arena}.json"
         again = json.loads((RESULTS_DIR / "twin_audit" / "twin_tables" / name).read_text())
         first = json.loads((RESULTS_DIR / "regime_map" / "twin_tables" / name).read_text())
@@ -80,7 +81,7 @@ def test_the_committed_report_has_its_settings_and_every_arena() -> None:
     assert report["metadata"]["settings"] == study.Settings(update_reference=True).recorded()
     with (folder / "twin_audit.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert [r["arena"] for r in rows] == list(study.regime_map.MAPPED)
+    assert [r["arena"] for r in rows] == list(arena_runs.MAPPED)
     for r in rows:
         assert r["n_physics"] == "10" and r["n_twin_tables"] == "40"
         assert 0.3 < float(r["switch_share"]) < 0.7 and math.isfinite(float(r["own_ratio"]))

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+import arena_runs
 import regime_map
 import twin_batch as study
 from tavc_agents.experiments.study import RESULTS_DIR
@@ -25,7 +26,7 @@ def test_each_condition_has_its_learner() -> None:
     assert study.learner_of("epsilon_0.1").kind == "epsilon"
     assert study.learner_of("random").kind == "random"
     assert set(regime_map.CONDITIONS) == {
-        *(regime_map.softmax_condition(t) for t in regime_map.TEMPERATURES),
+        *(regime_map.softmax_condition(t) for t in arena_runs.TEMPERATURES),
         "epsilon_0.1",
         "random",
     }
@@ -46,6 +47,6 @@ def test_the_committed_report_covers_every_cell_and_is_fast() -> None:
     assert report["metadata"]["settings"] == study.Settings(update_reference=True).recorded()
     with (folder / "twin_batch.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == len(regime_map.MAPPED) * len(regime_map.CONDITIONS)
+    assert len(rows) == len(arena_runs.MAPPED) * len(regime_map.CONDITIONS)
     assert all(r["n_batch"] == "2000" and int(r["n_twin"]) >= 100 for r in rows)
     assert report["summary"]["speed"]["batch_speedup"] > 1000  # "thousands of times faster"

@@ -272,6 +272,7 @@ def test_the_allocators_study_compares_plugins(
     example: ModuleType, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import allocators
+    from tavc_agents import evaluation
     from tavc_agents.model import load_model
 
     registry = fresh()
@@ -281,7 +282,7 @@ def test_the_allocators_study_compares_plugins(
 
     registry.register("mine", example.BestRewardSoFar)
     registry.register("mine_with_model", with_model, team=True)
-    monkeypatch.setattr(allocators, "REGISTRY", registry)
+    monkeypatch.setattr(evaluation, "REGISTRY", registry)  # which factories take the model
     monkeypatch.setattr(allocators, "allocator_names", registry.names)
     settings = allocators.Settings(presets=("dahl2004",), plugins=("mine", "mine_with_model"))
     model = load_model("dahl2004")
