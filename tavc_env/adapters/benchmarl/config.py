@@ -121,7 +121,7 @@ def load_task_config(name: str, path: str | Path | None = None) -> dict[str, Any
             return super().compose_node(parent, index)
 
     try:
-        loaded = yaml.load(text, Loader=NoAliases)  # noqa: S506 - a SafeLoader subclass
+        loaded = yaml.load(text, Loader=NoAliases)  # a SafeLoader subclass: safe
     except (yaml.YAMLError, RecursionError) as error:
         raise CorruptFileError(
             f"{path} is not valid YAML ({' '.join(str(error).split())}); allowed: a task YAML "
