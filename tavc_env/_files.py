@@ -227,13 +227,32 @@ def read_json(path: str | Path, limit: int, what: str = "file", nan: bool = Fals
 
 # -- writing ------------------------------------------------------------------------------------
 def check_writable(path: str | Path) -> Path:
-    """`path` as a Path, after checking that writing it replaces at most a regular file and that
-    its folder exists; a ValueError naming the path otherwise (call it before long work)."""
+    """`path` as a Path, after checking that writing it replaces at most a regular file, that its
+    folder exists, and that a file can be made there (a temporary one is made and removed: a
+    name too long, a read-only or virtual file system such as /proc, a full disk are caught); a
+    ValueError naming the path otherwise, in one line (call it before long work)."""
+    path = _replaceable(path)
+    try:
+        _new_file(path).unlink()
+    except OSError as error:
+        raise ValueError(
+            f"{path} cannot be written ({_one_line(error.strerror or error)}); allowed: a file "
+            "in a folder this user can write"
+        ) from None
+    return path
+
+
+def _replaceable(path: str | Path) -> Path:
     path = Path(path)
     try:
-        mode = path.lstat().st_mode
+        mode: int | None = path.lstat().st_mode
     except FileNotFoundError:
         mode = None
+    except OSError as error:  # a name too long, a folder in the path that cannot be searched
+        raise ValueError(
+            f"{path} cannot be written ({_one_line(error.strerror or error)}); allowed: a file "
+            "in a folder this user can write"
+        ) from None
     if mode is not None and not stat.S_ISREG(mode):
         raise ValueError(
             f"{path} is {kind_of(mode)}; refusing to replace it with a regular file; allowed: a "
@@ -252,7 +271,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     over `path` (on an error it is removed and `path` is untouched). The file is made with mode
     0o666 less the process's umask, as `open` makes a new file (`mkstemp` would make it 0o600:
     readable by its owner only)."""
-    path = check_writable(path)
+    path = _replaceable(path)
     tmp = _new_file(path)
     try:
         yield tmp

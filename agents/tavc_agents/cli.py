@@ -45,6 +45,10 @@ COMMANDS = {
 }
 
 
+MIN_FPS, MAX_FPS = 0.01, 100.0
+"""The frame rates a GIF can hold: a frame's delay is 1 to 65535 hundredths of a second."""
+
+
 def _allocator(args: argparse.Namespace) -> Any:
     from tavc_agents.experiments.registry import make_allocator
     from tavc_agents.model import missing_model, model_path, read_model
@@ -285,13 +289,32 @@ def _run_study(name: str, argv: Sequence[str], prog: str) -> int:
     return run_study(module, argv, module.__doc__ or name, prog)
 
 
+def version() -> str:
+    """The package's version, read from `tavc_env/__init__.py` without importing `tavc_env`
+    (importing it loads numpy, pymunk, numba and the env: about a second, for one string); the
+    installed metadata if the source cannot be read."""
+    import importlib.util
+    import re
+
+    spec = importlib.util.find_spec("tavc_env")  # finds the package; does not run it
+    if spec is not None and spec.origin is not None:
+        try:
+            text = Path(spec.origin).read_text(encoding="utf-8")
+        except OSError:  # pragma: no cover - a zipped or unreadable install
+            text = ""
+        found = re.search(r'^__version__ = "([^"]+)"$', text, re.MULTILINE)
+        if found:
+            return found.group(1)
+    from importlib.metadata import version as installed  # pragma: no cover
+
+    return installed("tavc-env")  # pragma: no cover
+
+
 class _Version(argparse.Action):
-    """`tavc --version`: the package's version, imported only when asked for."""
+    """`tavc --version`: the package's version, read without importing the env."""
 
     def __call__(self, parser: argparse.ArgumentParser, *args: Any, **kwargs: Any) -> None:
-        from tavc_env import __version__
-
-        print(f"tavc {__version__}")
+        print(f"tavc {version()}")
         parser.exit()
 
 
@@ -464,10 +487,15 @@ def _check_arguments(args: argparse.Namespace) -> None:
             f"--minutes = {minutes}; allowed: a finite number > 0 and <= {MAX_HOURS * 60:g} "
             "(simulated minutes)"
         )
-    for name in ("frame_s", "fps"):
-        value = getattr(args, name, None)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise ValueError(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")
+    frame_s = getattr(args, "frame_s", None)
+    if frame_s is not None and not (math.isfinite(frame_s) and frame_s > 0):
+        raise ValueError(f"--frame-s = {frame_s}; allowed: a finite number > 0")
+    fps = getattr(args, "fps", None)
+    if fps is not None and not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise ValueError(
+            f"--fps = {fps}; allowed: a number in [{MIN_FPS:g}, {MAX_FPS:g}] (a GIF holds each "
+            "frame's delay in hundredths of a second, at most 655.35 s)"
+        )
     seed = getattr(args, "seed", None)
     if seed is not None and not valid_seed(seed):
         raise ValueError(f"--seed = {seed}; allowed: {SEEDS}")

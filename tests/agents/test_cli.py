@@ -111,6 +111,23 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             "/nonexistent.json is missing",
         ),
         (["trial", "--allocator", "static", "--model", __file__, *TINY], "could not be read"),
+        (  # defect 10: a device was called "missing"
+            ["trial", "--allocator", "static", "--model", "/dev/zero", *TINY],
+            "/dev/zero is a character device, not a regular file",
+        ),
+        (  # defect 4: refused before the trial, not after it (the result was thrown away)
+            ["trial", "--allocator", "random", *TINY, "--out", "/proc/x.json"],
+            "/proc/x.json cannot be written (No such file or directory)",
+        ),
+        (
+            ["trial", "--allocator", "random", *TINY, "--out", f"/tmp/{'x' * 300}.json"],
+            "cannot be written (File name too long)",
+        ),
+        (  # defect 10: refused before the convergence ran
+            ["trial", "--allocator", "random", "--convergence-h", "0.02", "--measured-h", "1e-300"],
+            "measured_s = 3.6e-297 is invalid",
+        ),
+        (["record", "--fps", "1e9"], "--fps = 1000000000.0; allowed: a number in [0.01, 100]"),
         (["bench", "nope"], "study 'nope' is unknown; allowed: ["),
     ],
 )
@@ -207,6 +224,23 @@ def test_version_and_python_m() -> None:
         [sys.executable, "-m", "tavc_agents", "--version"], capture_output=True, text=True
     )
     assert done.returncode == 0 and done.stdout == f"tavc {__version__}\n"
+
+
+def test_version_does_not_import_the_env() -> None:
+    """`tavc --version` imported the whole env (numpy, pymunk, numba) to read one string: 1.45 s.
+    It reads the version from the source now, without importing `tavc_env`."""
+    code = (
+        "import sys\n"
+        "from tavc_agents.cli import main\n"
+        "try:\n"
+        "    main(['--version'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('tavc_env', 'numpy', 'numba')))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == "[]", done.stdout
 
 
 @pytest.mark.parametrize(
