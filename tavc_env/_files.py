@@ -236,7 +236,7 @@ def check_writable(path: str | Path) -> Path:
         _new_file(path).unlink()
     except OSError as error:
         raise ValueError(
-            f"{path} cannot be written ({_one_line(error.strerror or error)}); allowed: a file "
+            f"{path} cannot be written ({error.strerror or _one_line(error)}); allowed: a file "
             "in a folder this user can write"
         ) from None
     return path
@@ -250,7 +250,7 @@ def _replaceable(path: str | Path) -> Path:
         mode = None
     except OSError as error:  # a name too long, a folder in the path that cannot be searched
         raise ValueError(
-            f"{path} cannot be written ({_one_line(error.strerror or error)}); allowed: a file "
+            f"{path} cannot be written ({error.strerror or _one_line(error)}); allowed: a file "
             "in a folder this user can write"
         ) from None
     if mode is not None and not stat.S_ISREG(mode):

@@ -113,6 +113,20 @@ def _trial_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def say_if_compiling() -> None:
+    """Say, on stderr, that the robots' controller is being compiled when numba's cache does not
+    hold it (the first run in a fresh environment sat silent for a minute or more)."""
+    from tavc_env.engine.navigation import compiled_cache_ready
+
+    if compiled_cache_ready() is False:
+        print(
+            "tavc: compiling the robots' controller with numba (the first run in this "
+            "environment only: about 7 CPU s, a minute or more on a busy machine; cached after)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
 def cmd_trial(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -124,6 +138,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     overrides = arena_overrides(args.set)
     make_config(args.preset, **overrides)
     total = args.convergence_h + args.measured_h
+    say_if_compiling()
     bars: list[Any] = []  # made at the first report, so a trial refused as it starts shows none
     done = [0]
 
@@ -199,6 +214,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     from tavc_env import EnvOptions
 
     frames: list[Any] = []
+    say_if_compiling()
 
     def grab(env: Any) -> None:
         frames.append(Image.fromarray(env.render()))

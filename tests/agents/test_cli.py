@@ -326,3 +326,39 @@ def test_reproduce_help_lists_the_studys_options() -> None:
     code, out, _ = run(["reproduce", "--help"])
     assert code == 0
     assert all(option in out for option in ("--trials", "--convergence-h", "--resume", "--out"))
+
+
+def test_the_first_run_says_it_is_compiling(tmp_path: Path) -> None:
+    """A first `tavc trial` in a fresh venv sat silent for a minute or more while numba compiled
+    the controller. With an empty cache folder it now says so, on stderr, before any work."""
+    import os
+
+    code = (
+        "import sys\n"
+        "from tavc_env.engine.navigation import compiled_cache_ready\n"
+        "from tavc_agents.cli import say_if_compiling\n"
+        "print(compiled_cache_ready())\n"
+        "say_if_compiling()\n"
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}  # an empty cache: numba's first pick
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr
+    ready = done.stdout.strip()
+    if ready == "True":
+        pytest.skip("numba found the in-tree cache; the message is tested below with it absent")
+    assert ready == "False"
+    assert "tavc: compiling the robots' controller with numba" in done.stderr
+
+
+def test_no_compiling_message_once_the_cache_holds_the_controller(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from tavc_agents import cli
+    from tavc_env.engine import navigation
+
+    monkeypatch.setattr(navigation, "compiled_cache_ready", lambda: True)
+    cli.say_if_compiling()
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(navigation, "compiled_cache_ready", lambda: False)
+    cli.say_if_compiling()
+    assert "compiling the robots' controller" in capsys.readouterr().err
