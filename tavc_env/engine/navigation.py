@@ -716,7 +716,7 @@ def compiled_cache_ready() -> bool | None:
     NUMBA_CACHE_DIR, an edited source, a cache that cannot be written: about 7 CPU s, a minute
     or more of wall time on a loaded machine); None if numba's cache cannot be looked at."""
     try:
-        if run_ticks.signatures:  # compiled (or loaded) in this process already
+        if getattr(run_ticks, "signatures", None):  # compiled (or loaded) in this process already
             return True
         cache = getattr(run_ticks, "_cache", None)
         cache_file = getattr(cache, "_cache_file", None)
