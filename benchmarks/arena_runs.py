@@ -179,7 +179,7 @@ ARENAS: Mapping[str, Mapping[str, Any]] = {
 """Arena name -> `tavc_env.parallel_env` keyword arguments (a preset and its overrides)."""
 MAPPED = tuple(a for a in ARENAS if a != "dahl2004_passing")
 """the arenas of the committed map; `dahl2004_passing` has its own decisive test
-(`tavc_agents.studies.passing`), which runs its cells through this module's jobs"""
+(`benchmarks/passing.py`), which runs its cells through this module's jobs"""
 
 TEMPERATURES = (0.002, 0.005, 0.01, 0.02)
 EPSILON = 0.1

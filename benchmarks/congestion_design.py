@@ -2,7 +2,7 @@
 the loading time, station bays) give crowding elasticity e <= 1 while t(4)/t(3) >= 1.1 keeps
 3 + 3 the homogeneous equilibrium? Fixed allocations only, no learning; the rules that pick the
 arenas (`dahl2004_congestion`, and `dahl2004_bays` for the regime map) are in the study's
-docstring (`tavc_agents.studies.congestion_design`).
+docstring (`benchmarks/congestion_design.py`).
 
 Writes `congestion_design.{md,csv,json}` and every run (`runs/`) into a new run folder under
 runs/ (git ignores it), `--out`, or with `--update-reference` benchmarks/results/congestion_design/

@@ -15,7 +15,7 @@ folder skips the saved runs; `--max-jobs N` runs at most N new ones (0: only the
 The deep-MARL part of the leaderboard: TorchRL MAPPO and IPPO (one actor shared by every robot;
 `tavc_agents.learners.torchrl_ppo`) trained on a scenario for one budget of robot decisions, then
 run greedily on the scenario's evaluation seeds through the trial runner, scored as the allocators'
-leaderboard scores them (`tavc_agents.studies.leaderboard`).
+leaderboard scores them (`benchmarks/leaderboard.py`).
 
 A job is one (algorithm, scenario, training seed) run: train on the scenario's env (training seeds
 0, 1, ...; the evaluation seeds are never seen), with a learning curve (the greedy network on one

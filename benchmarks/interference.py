@@ -21,7 +21,7 @@ alternates).
    mean over f, s in 1..3 of ln(T_fast(f, s) / T_fast(1, 0)) divided by that of
    ln(T_slow(f, s) / T_slow(0, 1)); 1: crowding costs every robot the same fraction of its time,
    > 1: fast robots lose more. Its 95% interval is a percentile bootstrap resampling seeds.
-   `tavc_agents.studies.elasticity.measure_elasticity` measures e alone, for any arena.
+   `benchmarks/elasticity.py.measure_elasticity` measures e alone, for any arena.
 
 `--preset` (default dahl2004; also dahl2004_competence, dahl2004_light_stations,
 dahl2004_congestion, dahl2004_bays) is the arena of the cross runs; t(n) and the switch runs use

@@ -16,7 +16,7 @@ Writes `liveness.{md,csv,json}` (one CSV row per trial) and `provenance.json` in
 under runs/ (git ignores it), `--out`, or with `--update-reference` benchmarks/results/liveness/;
 each trial is kept as a small record in the output folder's trials/ as it finishes, so `--resume
 RUN_DIR` continues an interrupted run (`--workers`, `--backend local|ray`). The study is
-`tavc_agents.studies.liveness`.
+`benchmarks/liveness.py`.
 
     python benchmarks/liveness.py                 # 156 trials, ~5 min on one core
     python benchmarks/liveness.py --quick         # smoke run (seconds)

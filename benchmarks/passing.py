@@ -14,7 +14,7 @@ or with `--update-reference` benchmarks/results/passing_prediction/ or benchmark
     python benchmarks/passing.py --quick --arena dahl2004_bays   # smoke run
 
 The decisive test of emergent differentiation, in the arena where robots can pass
-(`dahl2004_passing`, chosen by the third design search of `tavc_agents.studies.congestion_design`
+(`dahl2004_passing`, chosen by the third design search of `benchmarks/congestion_design.py`
 from physics alone), in two stages whose order the git history shows:
 
 1. `--stage predict`: the arena's crowding elasticity e and pace in company rho (the interference

@@ -9,7 +9,7 @@ cell and 100 twin trials per cell. Writes `regime_map.{md,csv,json,png}` and `pr
 a new run folder under runs/ (git ignores it), `--out`, or with `--update-reference`
 benchmarks/results/regime_map/; every trial is kept as a compact record under the output folder's
 trials/ as it finishes, so `--resume RUN_DIR` continues an interrupted run. The study is
-`tavc_agents.studies.regime_map`.
+`benchmarks/regime_map.py`.
 
     python benchmarks/arena_runs.py --workers 2     # about 3520 physics trials: many hours
     python benchmarks/arena_runs.py --quick         # smoke run (a minute or two)
@@ -25,7 +25,7 @@ fast), the learned Q gap of fast robots minus that of slow ones, and performance
 random allocation. Beside each cell, the model twin's prediction (`tavc_env.twin`, its tables
 measured in the same arena): a what-if tool, never a substitute for the physics columns.
 
-Each arena's e is measured first (`tavc_agents.studies.elasticity.measure_elasticity`, the interference
+Each arena's e is measured first (`benchmarks/elasticity.py.measure_elasticity`, the interference
 study's runs and settings), then its twin tables (`tavc_env.twin.build_tables`).
 The cells that decide the question (softmax T = 0.005 and 0.01 on `dahl2004_congestion` and on
 `dahl2004`) get `decisive_trials` physics trials; the congestion arena's run first, then the

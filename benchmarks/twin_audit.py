@@ -1,7 +1,7 @@
 """The model twin audited under random allocation: are its tables' own-circuit cells and its switch
 cost right where crowds change at every decision, and how much of its disagreement with the
 physics on random allocation does the switch cost explain? The design is in the study's docstring
-(`tavc_agents.studies.twin_audit`).
+(`benchmarks/twin_audit.py`).
 
 Writes `twin_audit.{md,csv,json,png}`, every run (`runs/`) and the arenas' tables (`twin_tables/`)
 into a new run folder (`--update-reference`: benchmarks/results/twin_audit/); `--resume RUN_DIR`
@@ -16,7 +16,7 @@ strained: random allocation, whose crowds change at every decision and half of w
 switches.
 
 For each arena of the regime map, the twin's tables are measured as the regime map measures them
-(`tavc_agents.studies.regime_map`: the same runs, so the same tables), then the physics runs random
+(`benchmarks/regime_map.py`: the same runs, so the same tables), then the physics runs random
 allocation for `--hours` per seed (no breakdowns, the first `--warmup-s` not counted) and every
 task is set against its cell of the tables (`tavc_env.twin.random_allocation_run`):
 

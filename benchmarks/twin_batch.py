@@ -1,6 +1,6 @@
 """The batched model twin (thousands of twin trials in seconds, for power analyses) checked
 against the Policy-based twin in every cell of the regime map, and timed against the physics. The
-design is in the study's docstring (`tavc_agents.studies.twin_batch`).
+design is in the study's docstring (`benchmarks/twin_batch.py`).
 
 Writes `twin_batch.{md,csv,json}` and every cell's batch (`cells/`) into a new run folder
 (`--update-reference`: benchmarks/results/twin_batch/); `--resume RUN_DIR` continues.

@@ -2,7 +2,7 @@
 to 2.0 (2000 batched twin trials per point and condition: softmax TAVC at T = 0.002, 0.005, 0.01,
 epsilon 0.1; 15 h + 5 h), the break-even e per condition, and the figure of the differentiation
 page: these curves, the regime map's physics cells and the dahl2004_passing prediction and result
-where committed. The design is in the study's docstring (`tavc_agents.studies.twin_curve`).
+where committed. The design is in the study's docstring (`benchmarks/twin_curve.py`).
 
 Writes `twin_curve.{md,csv,json}`, `twin_curve_trials.csv` and `differentiation.png` into a new
 run folder (`--update-reference`: benchmarks/results/twin_curve/); `--resume RUN_DIR` continues.

@@ -6,7 +6,7 @@ each. Reports per allocator how fast the vacancy is refilled (and by whom), the 
 how well the allocation follows the priority change. Writes vacancy_chain.{md,csv,json},
 trials.csv and timeline.png into benchmarks/results/vacancy_chain/ (the committed reference; a run writes into a new runs/ folder unless --update-reference or --out); trials are kept in
 cache/ so `--resume RUN_DIR` continues an interrupted run. Needs the dahl2004 model of the tavc_model study. The study is
-tavc_agents.studies.vacancy_chain.
+benchmarks/vacancy_chain.py.
 
     python benchmarks/vacancy_chain.py
     python benchmarks/vacancy_chain.py --quick

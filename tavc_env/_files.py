@@ -2,15 +2,18 @@
 
 Every file the package reads (stored trials, provenance, manifests, reports, models, task YAML,
 network files) goes through `read_bytes`, `read_text` or `read_json`. A path is read only if it
-is a regular file of at most `limit` bytes: it is looked at with `lstat` (a symbolic link, even
-one to a regular file, is refused, so a run folder cannot be made to read elsewhere), opened with
-`O_NOFOLLOW | O_NONBLOCK` (a FIFO swapped in after the look neither blocks the open nor is
-followed), the open descriptor is checked again with `fstat` (regular, size within the bound),
-and at most `limit + 1` bytes are read (a file growing past its bound is caught too). Anything
-else (a folder, a FIFO, a device such as `/dev/zero`, a socket, a link, a file too large or
-unreadable, text that is not UTF-8, JSON that is garbled, nested too deeply, holds a number
-Python refuses to convert or a value that is not finite) raises `CorruptFileError`, a ValueError
-naming the file and what it is, in one line.
+is a regular file, or a symbolic link to one (git-annex, DVC and DataLad keep results as links into
+their stores), of at most `limit` bytes: it is looked at with `stat` (a link to a FIFO, a device, a
+folder, or to nothing is refused, naming what it points to), opened with `O_NONBLOCK` (a FIFO
+swapped in after the look does not block the open), the open descriptor is checked again with
+`fstat` (regular, size within the bound), and at most `limit + 1` bytes are read (a file growing
+past its bound is caught too). Anything else (a folder, a FIFO, a device such as `/dev/zero`, a
+socket, a dangling link, a file too large or unreadable, text that is not UTF-8, JSON that is
+garbled, nested too deeply, holds a number Python refuses to convert or a value that is not
+finite) raises `CorruptFileError`, a ValueError naming the file and what it is, in one line.
+
+Files are written through `atomic_path`: a new file made with mode 0o666 less the umask (as
+`open` makes one), so a colleague sharing the folder reads it as they read the user's other files.
 
 This module sits at the lowest layer, so that the env's own readers (the BenchMARL task files)
 can use it; `tavc_agents.experiments.files` re-exports it with the record format on top.
@@ -22,9 +25,9 @@ import contextlib
 import json
 import math
 import os
+import secrets
 import stat
 import sys
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -74,17 +77,30 @@ def read_bytes(path: str | Path, limit: int, what: str = "file") -> bytes:
         raise _refuse(path, what, "does not exist") from None
     except OSError as error:
         raise _refuse(path, what, f"cannot be looked at ({_one_line(error)})") from None
+    link = ""
+    if stat.S_ISLNK(mode):  # read through, if it ends at a regular file
+        try:
+            mode = path.stat().st_mode
+        except OSError as error:  # dangling, a loop, a target that cannot be looked at
+            raise _refuse(
+                path,
+                what,
+                f"is a symbolic link to {_target(path)!r}, which cannot be read "
+                f"({_one_line(error)})",
+                f"a {what} that is a regular file or a link to one",
+            ) from None
+        link = "a symbolic link to "
     if not stat.S_ISREG(mode):
         raise _refuse(
             path,
             what,
-            f"is {kind_of(mode)}, not a regular file",
-            f"a {what} that is a regular file",
+            f"is {link}{kind_of(mode)}, not a regular file",
+            f"a {what} that is a regular file or a link to one",
         )
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)
     try:
         fd = os.open(path, flags | getattr(os, "O_CLOEXEC", 0))
-    except OSError as error:  # swapped for a link after the look (ELOOP), unreadable, ...
+    except OSError as error:  # unreadable, removed after the look, ...
         raise _refuse(path, what, f"cannot be opened ({_one_line(error)})") from None
     with os.fdopen(fd, "rb", buffering=0) as file:
         info = os.fstat(fd)
@@ -93,7 +109,7 @@ def read_bytes(path: str | Path, limit: int, what: str = "file") -> bytes:
                 path,
                 what,
                 f"is {kind_of(info.st_mode)}, not a regular file",
-                f"a {what} that is a regular file",
+                f"a {what} that is a regular file or a link to one",
             )
         if info.st_size > limit:
             raise _refuse(
@@ -121,6 +137,13 @@ def read_bytes(path: str | Path, limit: int, what: str = "file") -> bytes:
             f"a {what} of at most {limit} bytes",
         )
     return b"".join(chunks)
+
+
+def _target(path: Path) -> str:
+    try:
+        return os.readlink(path)
+    except OSError:  # pragma: no cover - swapped after the look
+        return "?"
 
 
 def read_text(path: str | Path, limit: int, what: str = "file") -> str:
@@ -204,13 +227,32 @@ def read_json(path: str | Path, limit: int, what: str = "file", nan: bool = Fals
 
 # -- writing ------------------------------------------------------------------------------------
 def check_writable(path: str | Path) -> Path:
-    """`path` as a Path, after checking that writing it replaces at most a regular file and that
-    its folder exists; a ValueError naming the path otherwise (call it before long work)."""
+    """`path` as a Path, after checking that writing it replaces at most a regular file, that its
+    folder exists, and that a file can be made there (a temporary one is made and removed: a
+    name too long, a read-only or virtual file system such as /proc, a full disk are caught); a
+    ValueError naming the path otherwise, in one line (call it before long work)."""
+    path = _replaceable(path)
+    try:
+        _new_file(path).unlink()
+    except OSError as error:
+        raise ValueError(
+            f"{path} cannot be written ({error.strerror or _one_line(error)}); allowed: a file "
+            "in a folder this user can write"
+        ) from None
+    return path
+
+
+def _replaceable(path: str | Path) -> Path:
     path = Path(path)
     try:
-        mode = path.lstat().st_mode
+        mode: int | None = path.lstat().st_mode
     except FileNotFoundError:
         mode = None
+    except OSError as error:  # a name too long, a folder in the path that cannot be searched
+        raise ValueError(
+            f"{path} cannot be written ({error.strerror or _one_line(error)}); allowed: a file "
+            "in a folder this user can write"
+        ) from None
     if mode is not None and not stat.S_ISREG(mode):
         raise ValueError(
             f"{path} is {kind_of(mode)}; refusing to replace it with a regular file; allowed: a "
@@ -226,14 +268,11 @@ def check_writable(path: str | Path) -> Path:
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """A temporary path to write into; on leaving the block it is flushed to disk and renamed
-    over `path` (on an error it is removed and `path` is untouched)."""
-    path = check_writable(path)
-    # the same ending as the destination, for writers that infer a format from it (figures)
-    fd, name = tempfile.mkstemp(
-        dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}"
-    )
-    os.close(fd)
-    tmp = Path(name)
+    over `path` (on an error it is removed and `path` is untouched). The file is made with mode
+    0o666 less the process's umask, as `open` makes a new file (`mkstemp` would make it 0o600:
+    readable by its owner only)."""
+    path = _replaceable(path)
+    tmp = _new_file(path)
     try:
         yield tmp
         with open(tmp, "rb+") as fh:
@@ -242,10 +281,34 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    _sync_folder(path.parent)
+    sync_folder(path.parent)
 
 
-def _sync_folder(folder: Path) -> None:
+def temporary_name(path: Path) -> Path:
+    """A fresh name for a temporary file beside `path`: `.<name>.<random>.tmp<suffix>` (the same
+    ending as the destination, for writers that infer a format from it, such as figures)."""
+    return path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp{path.suffix}")
+
+
+def is_temporary(name: str, of: str) -> bool:
+    """Whether `name` is a temporary file `atomic_path` made for a file named `of`."""
+    return name.startswith(f".{of}.") and ".tmp" in name[len(of) + 2 :]
+
+
+def _new_file(path: Path) -> Path:
+    """Make a new empty file beside `path` (mode 0o666 less the umask, never an existing one)."""
+    for _ in range(100):
+        tmp = temporary_name(path)
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
+        except FileExistsError:  # pragma: no cover - 32 random bits taken
+            continue
+        os.close(fd)
+        return tmp
+    raise FileExistsError(f"no free temporary name beside {path}")  # pragma: no cover
+
+
+def sync_folder(folder: Path) -> None:
     try:
         fd = os.open(folder, os.O_RDONLY)
     except OSError:  # pragma: no cover - folders that cannot be opened (some platforms)

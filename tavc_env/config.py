@@ -616,7 +616,7 @@ ARENA_REGIMES: Mapping[str, Mapping[str, Any]] = {
 }
 
 # The congestion arena (`dahl2004_congestion`), chosen by the design search of
-# `tavc_agents.studies.congestion_design` from physics measurements alone (committed before any learner
+# `benchmarks/congestion_design.py` from physics measurements alone (committed before any learner
 # ran on it): a clearance-governed speed over 2.56 m of clearance, read by a 3 m range sensor, and
 # 40 s loading. Its crowding elasticity is the lowest the search found (about 1.17, not <= 1).
 CONGESTION: Mapping[str, Any] = {
@@ -625,13 +625,13 @@ CONGESTION: Mapping[str, Any] = {
     "source_service_s": 40.0,
 }
 
-# The second design search's lowest-e arena (`tavc_agents.studies.congestion_design --search bays`),
+# The second design search's lowest-e arena (`benchmarks/congestion_design.py --search bays`),
 # which by that search's rule joins the regime map: the congestion arena with three bays per
 # station. About e = 1.10, still above 1; 3 + 3 stays the homogeneous equilibrium.
 BAYS: Mapping[str, Any] = {**CONGESTION, "station_bays": 3}
 
 # The passing arena (`dahl2004_passing`), the third design search's choice by its committed rule
-# (`tavc_agents.studies.congestion_design --search passing`, physics only, before any learner ran
+# (`benchmarks/congestion_design.py --search passing`, physics only, before any learner ran
 # on it): robots that overtake, two bays per station and 120 s loading. No arena of that search met
 # every target; this one is the closest: e about 1.07 (the lowest measured), t(4)/t(3) about 1.33,
 # and a fast robot keeps its whole speed advantage in company (rho = its ratio alone, 1.10).

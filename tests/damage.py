@@ -4,7 +4,7 @@ guard that turns a hang into a failure.
 * `no_hang(seconds)`: a block that fails with `Hang` (a BaseException, so no `except Exception`
   of the code under test swallows it) when it runs longer than `seconds` (SIGALRM; main thread);
 * `plant(path, how, raw)`: replace `path` by one of `DAMAGES` made from `raw` (the bytes a good
-  file there holds), returning whether a reader must refuse it (always, except "keep").
+  file there holds), a reader must refuse every one of them ("keep" and "link" are read).
 """
 
 from __future__ import annotations
@@ -19,8 +19,9 @@ from pathlib import Path
 from typing import Any
 
 # Not regular files: a reader must refuse them before reading a byte (a FIFO or /dev/zero would
-# block or read forever otherwise).
-NOT_FILES = ("folder", "dangling_link", "link", "dev_zero", "fifo")
+# block or read forever otherwise). A link to a good copy ("link", which `plant` makes too) is not
+# among them: it is read, as git-annex, DVC and DataLad keep files.
+NOT_FILES = ("folder", "dangling_link", "dev_zero", "fifo")
 # Regular files a reader must refuse: garbled or truncated bytes, JSON that is not an object, a
 # value that is not finite under a valid checksum, an integer too long to convert, too large.
 BAD_FILES = ("garbled", "truncated", "list", "nan", "infinity", "huge_int", "too_large")
@@ -81,7 +82,7 @@ def plant(path: Path, how: str, raw: bytes, limit: int = 64 * 1024 * 1024) -> No
         (path / "inside.json").write_bytes(raw)
     elif how == "dangling_link":
         path.symlink_to(path.parent / f".{path.name}.nowhere")
-    elif how == "link":  # to a good copy: still refused, a run folder is never read through links
+    elif how == "link":  # to a good copy: read through (git-annex, DVC, DataLad)
         target = path.parent / f".{path.name}.target"
         target.write_bytes(raw)
         path.symlink_to(target)

@@ -40,6 +40,10 @@ COMMANDS = {
 }
 
 
+MIN_FPS, MAX_FPS = 0.01, 100.0
+"""The frame rates a GIF can hold: a frame's delay is 1 to 65535 hundredths of a second."""
+
+
 def _allocator(args: argparse.Namespace) -> Any:
     from tavc_agents.experiments.registry import make_allocator
     from tavc_agents.experiments.study import parse_key_values
@@ -104,6 +108,20 @@ def _trial_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def say_if_compiling() -> None:
+    """Say, on stderr, that the robots' controller is being compiled when numba's cache does not
+    hold it (the first run in a fresh environment sat silent for a minute or more)."""
+    from tavc_env.engine.navigation import compiled_cache_ready
+
+    if compiled_cache_ready() is False:
+        print(
+            "tavc: compiling the robots' controller with numba (the first run in this "
+            "environment only: about 7 CPU s, a minute or more on a busy machine; cached after)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
 def cmd_trial(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -115,6 +133,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
     overrides = arena_overrides(args.set)
     make_config(args.preset, **overrides)
     total = args.convergence_h + args.measured_h
+    say_if_compiling()
     bars: list[Any] = []  # made at the first report, so a trial refused as it starts shows none
     done = [0]
 
@@ -190,6 +209,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     from tavc_env import EnvOptions
 
     frames: list[Any] = []
+    say_if_compiling()
 
     def grab(env: Any) -> None:
         frames.append(Image.fromarray(env.render()))
@@ -268,13 +288,32 @@ def _existing(path: str | Path, allowed: str, *, folder: bool = False) -> Path:
     return path
 
 
+def version() -> str:
+    """The package's version, read from `tavc_env/__init__.py` without importing `tavc_env`
+    (importing it loads numpy, pymunk, numba and the env: about a second, for one string); the
+    installed metadata if the source cannot be read."""
+    import importlib.util
+    import re
+
+    spec = importlib.util.find_spec("tavc_env")  # finds the package; does not run it
+    if spec is not None and spec.origin is not None:
+        try:
+            text = Path(spec.origin).read_text(encoding="utf-8")
+        except OSError:  # pragma: no cover - a zipped or unreadable install
+            text = ""
+        found = re.search(r'^__version__ = "([^"]+)"$', text, re.MULTILINE)
+        if found:
+            return found.group(1)
+    from importlib.metadata import version as installed  # pragma: no cover
+
+    return installed("tavc-env")  # pragma: no cover
+
+
 class _Version(argparse.Action):
-    """`tavc --version`: the package's version, imported only when asked for."""
+    """`tavc --version`: the package's version, read without importing the env."""
 
     def __call__(self, parser: argparse.ArgumentParser, *args: Any, **kwargs: Any) -> None:
-        from tavc_env import __version__
-
-        print(f"tavc {__version__}")
+        print(f"tavc {version()}")
         parser.exit()
 
 
@@ -418,10 +457,15 @@ def _check_arguments(args: argparse.Namespace) -> None:
             f"--minutes = {minutes}; allowed: a finite number > 0 and <= {MAX_HOURS * 60:g} "
             "(simulated minutes)"
         )
-    for name in ("frame_s", "fps"):
-        value = getattr(args, name, None)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise ValueError(f"--{name.replace('_', '-')} = {value}; allowed: a finite number > 0")
+    frame_s = getattr(args, "frame_s", None)
+    if frame_s is not None and not (math.isfinite(frame_s) and frame_s > 0):
+        raise ValueError(f"--frame-s = {frame_s}; allowed: a finite number > 0")
+    fps = getattr(args, "fps", None)
+    if fps is not None and not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise ValueError(
+            f"--fps = {fps}; allowed: a number in [{MIN_FPS:g}, {MAX_FPS:g}] (a GIF holds each "
+            "frame's delay in hundredths of a second, at most 655.35 s)"
+        )
     seed = getattr(args, "seed", None)
     if seed is not None and not valid_seed(seed):
         raise ValueError(f"--seed = {seed}; allowed: {SEEDS}")

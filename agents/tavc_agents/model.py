@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from tavc_env import ArenaConfig, Robot, metrics
-from tavc_env._files import MIB, read_json
+from tavc_env._files import MIB, kind_of, read_json
 from tavc_env._validation import is_number, require
 
 REFERENCE_MODELS = Path(__file__).parent / "data" / "models"
@@ -357,7 +358,13 @@ def missing_model(preset: str, path: Path | None = None) -> str | None:
     if where.is_file():
         return None
     if path is not None:
-        return f"{where} is missing"
+        if not os.path.lexists(where):
+            return f"{where} is missing"
+        try:
+            what = kind_of(where.stat().st_mode)
+        except OSError:  # a dangling link
+            return f"{where} is a symbolic link to nothing"
+        return f"{where} is {what}, not a regular file"
     shipped = sorted(p.stem for p in REFERENCE_MODELS.glob("*.json"))
     return (
         f"no TAVC model of {preset!r} ships with the package (it has those of {shipped}); "

@@ -708,3 +708,20 @@ def _run_ticks(
 
 
 run_ticks = compiled(_run_ticks)
+
+
+def compiled_cache_ready() -> bool | None:
+    """Whether numba's disk cache holds the compiled tick (`run_ticks`) for this source, so that
+    a trial starts at once; False if the first call will compile it (a fresh install or
+    NUMBA_CACHE_DIR, an edited source, a cache that cannot be written: about 7 CPU s, a minute
+    or more of wall time on a loaded machine); None if numba's cache cannot be looked at."""
+    try:
+        if getattr(run_ticks, "signatures", None):  # compiled (or loaded) in this process already
+            return True
+        cache = getattr(run_ticks, "_cache", None)
+        cache_file = getattr(cache, "_cache_file", None)
+        if cache_file is None:  # compiled without a cache (no folder numba may write)
+            return False
+        return bool(cache_file._load_index())  # empty: no index, or one of another source
+    except Exception:  # numba's private cache API changed: say nothing rather than guess
+        return None

@@ -110,6 +110,23 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
             "/nonexistent.json is missing",
         ),
         (["trial", "--allocator", "static", "--model", __file__, *TINY], "could not be read"),
+        (  # defect 10: a device was called "missing"
+            ["trial", "--allocator", "static", "--model", "/dev/zero", *TINY],
+            "/dev/zero is a character device, not a regular file",
+        ),
+        (  # defect 4: refused before the trial, not after it (the result was thrown away)
+            ["trial", "--allocator", "random", *TINY, "--out", "/proc/x.json"],
+            "/proc/x.json cannot be written (No such file or directory)",
+        ),
+        (
+            ["trial", "--allocator", "random", *TINY, "--out", f"/tmp/{'x' * 300}.json"],
+            "cannot be written (File name too long)",
+        ),
+        (  # defect 10: refused before the convergence ran
+            ["trial", "--allocator", "random", "--convergence-h", "0.02", "--measured-h", "1e-300"],
+            "measured_s = 3.6e-297 is invalid",
+        ),
+        (["record", "--fps", "1e9"], "--fps = 1000000000.0; allowed: a number in [0.01, 100]"),
         (["bench", "allocators"], "invalid choice: 'bench'"),  # studies left the wheel
     ],
 )
@@ -173,6 +190,23 @@ def test_version_and_python_m() -> None:
         [sys.executable, "-m", "tavc_agents", "--version"], capture_output=True, text=True
     )
     assert done.returncode == 0 and done.stdout == f"tavc {__version__}\n"
+
+
+def test_version_does_not_import_the_env() -> None:
+    """`tavc --version` imported the whole env (numpy, pymunk, numba) to read one string: 1.45 s.
+    It reads the version from the source now, without importing `tavc_env`."""
+    code = (
+        "import sys\n"
+        "from tavc_agents.cli import main\n"
+        "try:\n"
+        "    main(['--version'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('tavc_env', 'numpy', 'numba')))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == "[]", done.stdout
 
 
 @pytest.mark.parametrize(
@@ -252,3 +286,39 @@ def test_allocator_choices_are_the_registrys_when_the_command_runs(
     code, out, err = run(["trial", "--allocator", "sticky_after_import", *TINY])
     assert code == 0, err
     assert "sticky_after_import on dahl2004, seed 0" in out
+
+
+def test_the_first_run_says_it_is_compiling(tmp_path: Path) -> None:
+    """A first `tavc trial` in a fresh venv sat silent for a minute or more while numba compiled
+    the controller. With an empty cache folder it now says so, on stderr, before any work."""
+    import os
+
+    code = (
+        "import sys\n"
+        "from tavc_env.engine.navigation import compiled_cache_ready\n"
+        "from tavc_agents.cli import say_if_compiling\n"
+        "print(compiled_cache_ready())\n"
+        "say_if_compiling()\n"
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}  # an empty cache: numba's first pick
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr
+    ready = done.stdout.strip()
+    if ready == "True":
+        pytest.skip("numba found the in-tree cache; the message is tested below with it absent")
+    assert ready == "False"
+    assert "tavc: compiling the robots' controller with numba" in done.stderr
+
+
+def test_no_compiling_message_once_the_cache_holds_the_controller(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from tavc_agents import cli
+    from tavc_env.engine import navigation
+
+    monkeypatch.setattr(navigation, "compiled_cache_ready", lambda: True)
+    cli.say_if_compiling()
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(navigation, "compiled_cache_ready", lambda: False)
+    cli.say_if_compiling()
+    assert "compiling the robots' controller" in capsys.readouterr().err

@@ -8,7 +8,7 @@ robot was 159-177 s (median about 95 s; a task alone takes 60-75 s, and a robot 
 all five others at a source with 20 s loading each). 600 s is more than three times the longest
 measured gap, and a robot stuck for good would exceed it within the run.
 
-The study `tavc_agents.studies.long_run` (benchmarks/long_run.py) checks the same at length; a quick
+The study `benchmarks/long_run.py` (benchmarks/long_run.py) checks the same at length; a quick
 run of it passes, and the same run judged with a one-minute limit fails.
 """
 

@@ -43,8 +43,12 @@ def test_every_damage_is_refused_naming_the_file(tmp_path: Path, how: str) -> No
     plant(path, how, GOOD, limit=LIMIT)
     message = refused(path)
     if how in NOT_FILES:
-        kind = {"folder": "a folder", "fifo": "a FIFO"}.get(how, "a symbolic link")
-        assert f"is {kind}, not a regular file" in message
+        kind = {
+            "folder": "is a folder, not a regular file",
+            "fifo": "is a FIFO, not a regular file",
+            "dev_zero": "is a symbolic link to a character device, not a regular file",
+        }.get(how, "is a symbolic link to ")
+        assert kind in message
 
 
 def test_a_good_file_reads(tmp_path: Path) -> None:
@@ -80,17 +84,33 @@ def test_a_fifo_swapped_in_after_the_look_is_caught_by_fstat_without_blocking(
         read_bytes(path, LIMIT)
 
 
-def test_a_link_swapped_in_after_the_look_is_not_followed(tmp_path: Path) -> None:
-    target = tmp_path / "target.json"
-    target.write_bytes(GOOD)
+def test_a_link_to_a_regular_file_is_read(tmp_path: Path) -> None:
+    """git-annex, DVC and DataLad keep files as symbolic links into their stores: a link to a
+    regular file is read through (it was refused, locking their users out)."""
+    path = tmp_path / "f.json"
+    plant(path, "link", GOOD)
+    assert path.is_symlink()
+    assert read_json(path, LIMIT) == {"a": 1, "b": [0.5, 2]}
+
+
+@pytest.mark.parametrize("to", ["fifo", "folder", "device", "nowhere"])
+def test_a_link_to_anything_but_a_regular_file_is_refused_naming_it(
+    tmp_path: Path, to: str
+) -> None:
+    target = {"device": Path("/dev/zero"), "nowhere": tmp_path / "nowhere"}.get(to, tmp_path / to)
+    if to == "fifo":
+        os.mkfifo(target)
+    elif to == "folder":
+        target.mkdir()
     path = tmp_path / "f.json"
     path.symlink_to(target)
-    regular = os.stat_result((stat.S_IFREG | 0o644, 0, 0, 1, 0, 0, 10, 0, 0, 0))
-    with (
-        mock.patch.object(Path, "lstat", return_value=regular),
-        pytest.raises(CorruptFileError, match=r"f\.json cannot be opened"),
-    ):
-        read_bytes(path, LIMIT)
+    expected = {
+        "fifo": "is a symbolic link to a FIFO, not a regular file",
+        "folder": "is a symbolic link to a folder, not a regular file",
+        "device": "is a symbolic link to a character device, not a regular file",
+        "nowhere": f"is a symbolic link to {str(target)!r}, which cannot be read",
+    }[to]
+    assert expected in refused(path)
 
 
 def test_a_file_growing_past_its_bound_while_read_is_refused(tmp_path: Path) -> None:

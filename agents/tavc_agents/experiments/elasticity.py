@@ -2,7 +2,7 @@
 
 Elasticity compares what crowding costs a fast (0.30 m/s) and a slow (0.20 m/s) robot: T_c(f, s) is
 the mean task time of a robot of class c when f fast and s slow robots serve circuit 0. The runs
-are those of the interference study's cross-interference (`tavc_agents.studies.interference`), made for
+are those of the interference study's cross-interference (`benchmarks/interference.py`), made for
 any `ArenaConfig`: its arena (geometry, stations, physics) with the team replaced by
 `PER_CLASS` fast robots (0-2) and `PER_CLASS` slow ones (3-5), scheduled breakdowns removed.
 With two or more circuits, f fast and s slow robots serve circuit 0 and the rest circuit 1, as in

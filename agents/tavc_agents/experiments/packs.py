@@ -8,8 +8,15 @@ beside them: one line per trial, sorted by key, each line
 
 where `sha256` is the SHA-256 of the line's text up to that field (closed with `}`), so a damaged
 line is named by file, line and trial. The pack file's own SHA-256 goes into the folder's
-`CHECKSUMS.sha256`, which catches lines added or removed. The pack is written atomically and read
-back record by record before any loose file is deleted.
+`CHECKSUMS.sha256`, which catches lines added, removed or edited (with their own checksum
+recomputed): a pack that does not match it is not used at all, whatever else is wrong with it.
+
+Packing is safe to stop at any moment (a kill, a power cut, a full disk): at every step the folder
+reads as it did before or as it will after, and the next packing finishes the job
+(`docs/reliability.md` lists the steps). The new pack is written under a temporary name, then as
+`pack.jsonl.new`, whose digest the manifest lists as pending (`pack.jsonl.new` beside the current
+`pack.jsonl`) before the new pack is renamed over the old; a reader accepts `pack.jsonl` matching
+either entry. The pack is read back record by record before any loose file is deleted.
 
 A sweep resuming in the folder finds a trial in its own loose file first, then in its pack line;
 a damaged line is reported in one line and that trial runs again (saved as a loose file, which
@@ -40,10 +47,10 @@ from tavc_agents.experiments.files import (
     MANIFEST,
     MANIFEST_MAX_BYTES,
     MIB,
+    RECORD_MAX_BYTES,
     SCHEMA_VERSION,
     CorruptFileError,
     atomic_path,
-    manifest_entry,
     read_bytes,
     read_record,
     read_text,
@@ -51,10 +58,12 @@ from tavc_agents.experiments.files import (
 )
 from tavc_agents.experiments.folders import hold_folder
 from tavc_agents.experiments.runner import TrialResult
-from tavc_env._files import parse_json
+from tavc_env._files import kind_of, parse_json, sync_folder
 
 PACK = "pack.jsonl"
 PACK_MAX_BYTES = 1024 * MIB  # the largest committed pack is about 6 MiB
+LINE_MAX_BYTES = RECORD_MAX_BYTES  # one trial's line: as large as its loose file may be
+PENDING = PACK + ".new"  # the new pack, before it is renamed over the old (see the module)
 _LINE = re.compile(r'^(\{"key":.*),"sha256":"([0-9a-f]{64})"\}$', re.DOTALL)
 _FAILED = ".failed.json"  # a sweep's record of a job that raised: not a result
 
@@ -154,6 +163,30 @@ def _index(path: Path) -> _Index:
     return index
 
 
+def _manifest_lines(folder: Path) -> list[tuple[str, str]]:
+    """The (name, digest) entries of `folder`'s manifest, in order (none if it has none)."""
+    manifest = folder / MANIFEST
+    if not os.path.lexists(manifest):
+        return []
+    text = read_text(manifest, MANIFEST_MAX_BYTES, "checksum manifest")
+    entries = []
+    for line in text.splitlines():
+        digest, _, name = line.partition("  ")
+        if name:
+            entries.append((name, digest))
+    return entries
+
+
+def _pack_entries(path: Path) -> set[str]:
+    """The digests the manifest vouches for `path` with: its own entry, and the pending new
+    pack's while a packing is under way or was stopped (see the module)."""
+    try:
+        entries = _manifest_lines(path.parent)
+    except CorruptFileError as error:
+        raise CorruptFileError(f"{path} cannot be checked: {error}") from None
+    return {digest for name, digest in entries if name in (path.name, PENDING)}
+
+
 def _read_index(path: Path) -> _Index:
     raw = read_bytes(path, PACK_MAX_BYTES, "trial pack")
     lines: dict[str, tuple[int, str]] = {}
@@ -162,6 +195,14 @@ def _read_index(path: Path) -> _Index:
     if chunks[-1] == b"":  # the newline that ends the last line
         chunks.pop()
     for number, chunk in enumerate(chunks, 1):
+        if len(chunk) > LINE_MAX_BYTES:  # refused before any matching or hashing of it
+            key = _key_of(chunk[:4096].decode("utf-8", errors="replace"))
+            damaged.setdefault(
+                key,
+                f"{path}, line {number} ({key or 'key unreadable'}) holds {len(chunk)} bytes, "
+                f"more than the {LINE_MAX_BYTES} allowed for one trial",
+            )
+            continue
         text = chunk.decode("utf-8", errors="replace")
         checked = _checked_line(text)
         if isinstance(checked, str):
@@ -171,14 +212,17 @@ def _read_index(path: Path) -> _Index:
             damaged[checked[0]] = f"{path}, line {number} ({checked[0]}) repeats a key"
         else:
             lines[checked[0]] = (number, text)
-    expected = manifest_entry(path)
+    expected = _pack_entries(path)
     problem = None
-    if expected is None:
+    if not expected:
         problem = f"{path} is not listed in {path.parent / MANIFEST}: not packed by this package"
-    elif hashlib.sha256(raw).hexdigest() != expected and not damaged:
+    elif hashlib.sha256(raw).hexdigest() not in expected:
+        # Checked whatever else is wrong: with a damaged line beside it, a removed line or an
+        # edited one with its checksum recomputed would otherwise pass unseen.
+        some = f" ({len(damaged)} of its lines damaged)" if damaged else ""
         problem = (
-            f"{path} does not match its entry in {MANIFEST}: lines were added, removed or "
-            "reordered after it was packed"
+            f"{path} does not match its entry in {MANIFEST}{some}: lines were damaged, added, "
+            "removed, reordered or edited after it was packed, so none of its lines is used"
         )
     return _Index(path, lines, damaged, problem)
 
@@ -274,19 +318,35 @@ def saved_paths(pattern: str) -> list[str]:
 
 # -- the public loader --------------------------------------------------------------------------------
 def _loose(folder: Path) -> list[Path]:
-    """The loose result files of `folder` (a sweep's `<key>.json`; not its failure records)."""
-    files = sorted(p for p in folder.glob("*.json") if not p.name.endswith(_FAILED))
+    """The loose result files of `folder` (a sweep's `<key>.json`; not its failure records); a
+    symbolic link to a regular file is one (git-annex, DVC and DataLad keep files as links)."""
+    files = sorted(
+        p for p in folder.glob("*.json") if not p.name.endswith(_FAILED) and not _leftover(p.name)
+    )
     for path in files:
-        if path.is_symlink() or not path.is_file():
+        if not path.is_file():
+            try:
+                mode = path.stat().st_mode
+                what = f"is {'a symbolic link to ' if path.is_symlink() else ''}{kind_of(mode)}"
+            except OSError:
+                what = "is a symbolic link to nothing"
             raise ValueError(
-                f"{path} is not a regular file; allowed: result files saved by a sweep"
+                f"{path} {what}, not a regular file; allowed: result files saved by a sweep "
+                "(regular files or links to them)"
             )
     return files
 
 
-def _all_records(folder: Path) -> dict[str, dict[str, Any]]:
+def _leftover(name: str) -> bool:
+    """Whether `name` is a temporary file a writer stopped part way left (`atomic_path`'s)."""
+    return name.startswith(".") and ".tmp" in name
+
+
+def _all_records(folder: Path, packing: bool = False) -> dict[str, dict[str, Any]]:
     """Every trial of `folder` by key (its loose file over its pack line), sorted by key; a
-    damaged pack or file is a `CorruptFileError` (nothing is left out silently)."""
+    damaged pack or file is a `CorruptFileError` (nothing is left out silently). When `packing`,
+    a pack that does not match its manifest entry is superseded if every trial it names has a
+    loose file (the sweep that named it ran them all again)."""
     if not folder.is_dir():
         raise ValueError(f"folder = {str(folder)!r} is invalid; allowed: a folder of trials")
     records: dict[str, dict[str, Any]] = {}
@@ -294,6 +354,13 @@ def _all_records(folder: Path) -> dict[str, dict[str, Any]]:
     pack = folder / PACK
     if pack.is_file():
         index = _index(pack)
+        superseded = (
+            packing
+            and index.problem is not None
+            and all(key in loose for key in [*index.lines, *index.damaged])
+        )
+        if index.problem is not None and not superseded:
+            raise CorruptFileError(index.problem)
         for key, problem in index.damaged.items():
             if key not in loose:
                 raise CorruptFileError(problem)
@@ -367,37 +434,89 @@ class Packed:
         )
 
 
+class PackError(ValueError):
+    """Packing stopped by the file system (a full disk, a folder turned read-only): one line
+    naming the folder and the cause; the folder still reads as before (see the module)."""
+
+
 def pack_folder(folder: str | Path) -> Packed:
     """Move the loose trial files of `folder` into its `pack.jsonl` (made if there is none):
     write the pack atomically, list its digest in `CHECKSUMS.sha256`, read it back record by
     record, and only then delete the loose files. A loose file replaces the pack line of its key
     (a trial run again after its line was damaged). Damage anywhere is a `CorruptFileError`
-    naming it, before anything is written."""
+    naming it, before anything is written; a file system error (a full disk) is a `PackError`
+    in one line. Stopped at any moment, it leaves every trial readable (see the module), and the
+    next packing finishes the job."""
+    if os.fspath(folder) == "":
+        raise ValueError("folder = '' is invalid: an empty name; allowed: a folder of trials")
     folder = Path(folder)
     if not folder.is_dir():  # checked before the lock, which would make the folder
         raise ValueError(f"folder = {str(folder)!r} is invalid; allowed: a folder of trials")
-    with hold_folder(folder):  # no sweep writes the folder while its files move
-        return _pack_held(folder)
+    try:
+        with hold_folder(folder):  # no sweep writes the folder while its files move
+            return _pack_held(folder)
+    except OSError as error:
+        where = f" ({error.filename})" if error.filename else ""
+        raise PackError(
+            f"{folder} was not packed: {error.strerror or error}{where}; every trial still reads "
+            "from its loose file or the pack, and packing again finishes the job"
+        ) from None
 
 
 def _pack_held(folder: Path) -> Packed:
-    records = _all_records(folder)  # checks the folder, the pack and every loose file first
-    loose = _loose(folder)
     pack = folder / PACK
+    _finish_stopped(folder, pack)
+    records = _all_records(folder, packing=True)  # checks the folder, pack and loose files first
+    loose = _loose(folder)
     if not loose:
         return Packed(pack, len(records), 0, pack.stat().st_size if pack.is_file() else 0)
-    old = _index(pack).lines if pack.is_file() else {}
+    index = _index(pack) if pack.is_file() else None
+    old = index.lines if index is not None and index.problem is None else {}
     moved = {p.stem for p in loose}
     # Lines already packed are kept as they are; only the loose records are written anew.
     lines = [old[k][1] if k in old and k not in moved else _line(k, v) for k, v in records.items()]
-    with atomic_path(pack) as tmp:
-        tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    _write_manifest(folder, pack)
+    raw = ("\n".join(lines) + "\n").encode()
+    new = folder / PENDING
+    # 1. the new pack, complete and on disk, under its own name (a stop leaves a temporary file,
+    #    which the next packing removes)
+    with atomic_path(new) as tmp:
+        tmp.write_bytes(raw)
+    # 2. the manifest vouches for it as pending, beside the current pack's entry
+    _write_manifest(folder, {PENDING: hashlib.sha256(raw).hexdigest()})
+    # 3. the new pack replaces the old: pack.jsonl matches the pending entry
+    os.replace(new, pack)
+    sync_folder(folder)
+    # 4. the manifest lists it as the pack (the pending entry goes)
+    _write_manifest(folder, {PACK: hashlib.sha256(raw).hexdigest()})
     _verify(pack, records)
+    # 5. the loose files go, each now in the pack (a loose file over its line until it goes)
     for path in loose:
         path.unlink()
-    _write_manifest(folder, pack)  # without the entries of the files just deleted
+    sync_folder(folder)
+    _write_manifest(folder, {})  # without the entries of the files just deleted
     return Packed(pack, len(records), len(loose), pack.stat().st_size)
+
+
+def _finish_stopped(folder: Path, pack: Path) -> None:
+    """Clear what a packing stopped part way left: its temporary files and a pending pack that
+    was not renamed yet (its loose files are all still there); a pack already renamed over the
+    old one has its entry set by `_write_manifest` (step 4 again)."""
+    for path in folder.iterdir():  # the lock keeps every writer out: none of them is in use
+        if _leftover(path.name) and path.is_file() and not path.is_symlink():
+            path.unlink()
+    if os.path.lexists(folder / PENDING):
+        (folder / PENDING).unlink()
+    entries = dict(_manifest_lines(folder))
+    if PENDING in entries:
+        if (
+            pack.is_file()
+            and hashlib.sha256(read_bytes(pack, PACK_MAX_BYTES, "trial pack")).hexdigest()
+            == entries[PENDING]
+        ):
+            _write_manifest(folder, {PACK: entries[PENDING]})  # stopped after step 3
+        else:
+            _write_manifest(folder, {})  # stopped before step 3: the old pack stands
+    _CACHE.pop(pack, None)
 
 
 def _verify(pack: Path, records: Mapping[str, Mapping[str, Any]]) -> None:
@@ -414,17 +533,16 @@ def _verify(pack: Path, records: Mapping[str, Mapping[str, Any]]) -> None:
             )
 
 
-def _write_manifest(folder: Path, pack: Path) -> None:
-    """Set the pack's entry in the folder's manifest, keeping the entries of files that exist."""
-    manifest = folder / MANIFEST
+def _write_manifest(folder: Path, changed: Mapping[str, str]) -> None:
+    """Set the `changed` entries (name: digest) of the folder's manifest, keeping those of files
+    that exist; the pending entry is kept only if `changed` sets it, and setting the pack's
+    entry drops it."""
     entries: dict[str, str] = {}
-    if manifest.exists():
-        for line in read_text(manifest, MANIFEST_MAX_BYTES, "checksum manifest").splitlines():
-            digest, _, name = line.partition("  ")
-            if name and (folder / name).exists():
-                entries[name] = digest
-    entries[pack.name] = hashlib.sha256(read_bytes(pack, PACK_MAX_BYTES, "trial pack")).hexdigest()
-    write_text(manifest, "".join(f"{entries[n]}  {n}\n" for n in sorted(entries)))
+    for name, digest in _manifest_lines(folder):
+        if name != PENDING and os.path.lexists(folder / name):
+            entries[name] = digest
+    entries.update(changed)
+    write_text(folder / MANIFEST, "".join(f"{entries[n]}  {n}\n" for n in sorted(entries)))
 
 
 def pack_new(root: str | Path) -> list[Packed]:
@@ -446,9 +564,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     for folder in folders:
         try:
             print(pack_folder(folder).line())
-        except ValueError as error:  # CorruptFileError included
+        except ValueError as error:  # CorruptFileError and PackError included
             print(f"{folder}: not packed: {error}", file=sys.stderr)
             return 2
+        except KeyboardInterrupt:
+            print(
+                f"{folder}: packing interrupted; every trial still reads, and packing again "
+                "finishes the job",
+                file=sys.stderr,
+            )
+            return 130
     return 0
 
 

@@ -286,6 +286,13 @@ def run_trial(
         "a positive total duration",
     )
     require(
+        measured_s == 0 or float(convergence_s) + float(measured_s) > float(convergence_s),
+        "measured_s",
+        measured_s,
+        f"0, or a period the clock resolves after convergence_s = {convergence_s} (the measured "
+        "window would be empty: refused before the convergence runs)",
+    )
+    require(
         is_number(snapshot_every_s) and snapshot_every_s > 0,
         "snapshot_every_s",
         snapshot_every_s,

@@ -1,14 +1,16 @@
 """The study contract: what every study shares, so that a study is a short program over the library.
 
-A study is a module with a `Settings` class and a `run(settings) -> Outcome` function. `Settings`
+A study is a program (`benchmarks/<name>.py` in the source repository) with a `Settings` class, a
+`run(settings) -> Outcome` function and a `main(argv)` over `run_study`. `Settings`
 is a frozen dataclass deriving from `StudySettings`: its fields are the study's command line
 (`parse_settings`), and its class says the rest in a few lines: what `--quick` changes
 (`quick_sizes`), which settings its report records (`recorded_fields`), and its committed
 reference folder (`reference`). `StudySettings` brings where a run writes (a new run folder by
 default, never the committed reference results unless asked), and `run_jobs` runs a study's jobs
 with those settings recorded as their provenance. `run` computes, writes its report and returns
-what it wrote; `run_study` is the command line of every study (the benchmark scripts and
-`tavc bench`), which also compares a run's tables with the committed reference.
+what it wrote; `run_study` is the command line of every study, which also compares a run's tables
+with the committed reference. Below the contract: the settings checks studies share (`at_least`,
+`refuse_invalid`, `choices`, ...), `KEY=VALUE` arena overrides and the `--figure-only` redraw.
 """
 
 from __future__ import annotations

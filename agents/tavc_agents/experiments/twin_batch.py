@@ -25,7 +25,7 @@ process, step for step:
 
 Not covered (a ValueError says so): breakdowns, priority changes, other allocators. The random
 streams differ from the Policy-based twin's, so the two agree in distribution, not trial by trial;
-`tavc_agents.studies.twin_batch` checks that agreement against the regime map's twin trials.
+`benchmarks/twin_batch.py` checks that agreement against the regime map's twin trials.
 """
 
 from __future__ import annotations

@@ -122,11 +122,22 @@ class Mlp:
         check_layers(declared, path, n_inputs, n_outputs)
         n = len(declared)
         with np.load(Path(path), allow_pickle=False) as data:
-            return cls(
-                tuple(data[f"w{k}"] for k in range(n)),
-                tuple(data[f"b{k}"] for k in range(n)),
-                str(data["activation"]),
-            )
+            weights = tuple(data[f"w{k}"] for k in range(n))
+            biases = tuple(data[f"b{k}"] for k in range(n))
+            activation = str(data["activation"])
+        for name, array in [
+            *((f"w{k}", w) for k, w in enumerate(weights)),
+            *((f"b{k}", b) for k, b in enumerate(biases)),
+        ]:
+            bad = np.flatnonzero(~np.isfinite(array))
+            if bad.size:
+                where = np.unravel_index(int(bad[0]), array.shape)
+                raise ValueError(
+                    f"network file {path}: {name}{list(map(int, where))} = "
+                    f"{array.flat[bad[0]]} ({bad.size} values not finite); allowed: finite "
+                    "weights (a network trained to NaN or infinity would drive every robot alike)"
+                )
+        return cls(weights, biases, activation)
 
 
 MAX_PARAMETERS = 10_000_000
@@ -184,6 +195,8 @@ def declared_layers(path: str | Path) -> list[tuple[int, int]]:
             raise refuse(f"declares layer {k} as {w_type} and {b_type}, not floats")
         if len(w_shape) != 2 or b_shape != w_shape[:1]:
             raise refuse(f"declares layer {k} as {w_shape} and {b_shape}, not (out, in) and (out,)")
+        if 0 in w_shape:
+            raise refuse(f"declares layer {k} as {w_shape}: a layer of zero width")
         if k and w_shape[1] != layers[-1][0]:
             raise refuse(f"declares layer {k}'s input as {w_shape[1]}, not {layers[-1][0]}")
         total += w_shape[0] * w_shape[1] + w_shape[0]

@@ -103,8 +103,25 @@ def load_task_config(name: str, path: str | Path | None = None) -> dict[str, Any
         require(name in names, "task", name, f"one of {list(names)} (the YAML files in {TASK_DIR})")
         path = TASK_DIR / f"{name}.yaml"
     text = read_text(path, TASK_MAX_BYTES, "BenchMARL task YAML")
+
+    class NoAliases(yaml.SafeLoader):
+        """A safe loader that refuses aliases (`*name`): no task file needs one, and a few
+        hundred bytes of nested aliases expand without bound (nine levels of nine ran for
+        minutes) or, referring to themselves, make a structure that recurses forever."""
+
+        def compose_node(self, parent: Any, index: Any) -> Any:
+            if self.check_event(yaml.AliasEvent):
+                event = self.peek_event()
+                raise yaml.composer.ComposerError(
+                    None,
+                    None,
+                    f"holds the alias *{event.anchor}; aliases are refused",
+                    event.start_mark,
+                )
+            return super().compose_node(parent, index)
+
     try:
-        loaded = yaml.safe_load(text)
+        loaded = yaml.load(text, Loader=NoAliases)  # a SafeLoader subclass: safe
     except (yaml.YAMLError, RecursionError) as error:
         raise CorruptFileError(
             f"{path} is not valid YAML ({' '.join(str(error).split())}); allowed: a task YAML "

@@ -55,6 +55,27 @@ def test_a_regular_file_is_replaced_atomically(tmp_path: Path) -> None:
     assert path.read_text() == "new" and os.listdir(tmp_path) == ["r.json"]
 
 
+@pytest.mark.parametrize("umask", [0o022, 0o002, 0o077])
+def test_written_files_honour_the_umask(tmp_path: Path, umask: int) -> None:
+    """A file the package writes (a record, a report, a pack) gets mode 0o666 less the umask, as
+    `open` gives a new file; it was 0o600 whatever the umask (`mkstemp`), so a colleague sharing
+    the folder could not read a trial.json."""
+    previous = os.umask(umask)
+    try:
+        write_csv(tmp_path / "table.csv", [{"a": 1}])
+        written = [
+            write_text(tmp_path / "report.md", "x"),
+            write_record(tmp_path / "trial.json", {"a": 1}),
+            tmp_path / "table.csv",
+        ]
+        (tmp_path / "old.json").write_text("old")
+        written.append(write_text(tmp_path / "old.json", "new"))  # replacing a file too
+    finally:
+        os.umask(previous)
+    for path in written:
+        assert oct(Path(path).stat().st_mode & 0o777) == oct(0o666 & ~umask), path
+
+
 def test_concurrent_writers_do_not_share_a_temporary_file(tmp_path: Path) -> None:
     path = tmp_path / "shared.json"
     errors: list[BaseException] = []

@@ -71,28 +71,66 @@ def test_a_sweep_resumes_every_packed_job(packed: Path) -> None:
     assert not list(packed.glob("*.json"))
 
 
-def test_a_damaged_line_is_named_and_only_that_job_runs_again(
+def test_a_damaged_line_is_named_and_no_line_of_its_pack_is_trusted(
     packed: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    """A damaged line means the pack no longer matches its manifest entry: the damaged line is
+    named, and no line of that pack is used (a removed or re-checksummed line beside it would
+    otherwise pass), so every job runs again; packing then replaces the pack."""
     pack = packed / packs.PACK
     pack.write_text(pack.read_text().replace('"square":9.0', '"square":9.5'))
-    assert swept(packed) == ["job3"]
+    assert swept(packed) == [f"job{k}" for k in range(5)]
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1
-    assert f"{pack}, line 4 (job3) does not match its checksum" in err[0]
-    assert err[0].endswith("running run 'job3' again")
-    with pytest.raises(CorruptFileError):  # the rerun's loose file stands in, the line is bad
+    assert len(err) == 5
+    assert all(
+        "does not match its entry in CHECKSUMS.sha256 (1 of its lines damaged)" in e for e in err
+    )
+    assert err[3].endswith("running run 'job3' again")
+    with pytest.raises(CorruptFileError):  # the rerun's loose files stand in, the pack is bad
         packs.find(packed, "job3")
-    assert packs.load_trials(packed)[3]["result"]["square"] == 9.0  # the loose file
-    assert packs.pack_folder(packed).moved == 1  # packed in, replacing the damaged line
+    with pytest.raises(CorruptFileError, match="none of its lines is used"):
+        packs.load_trials(packed)  # a line removed beside the damage would be missing unseen
+    assert packs.pack_folder(packed).moved == 5  # packed in, replacing the damaged pack
+    assert packs.load_trials(packed)[3]["result"]["square"] == 9.0
     assert packs.find(packed, "job3") is not None and swept(packed) == []
+
+
+def test_a_removed_line_is_caught_even_beside_a_damaged_one(packed: Path) -> None:
+    """Defect 6: the pack-wide digest was skipped as soon as one line was damaged, so a line
+    removed beside it went unreported (the loader returned four trials of five)."""
+    pack = packed / packs.PACK
+    lines = pack.read_text().splitlines(keepends=True)
+    lines[0] = lines[0].replace('"square":0.0', '"square":0.5')  # damaged: its checksum fails
+    pack.write_text("".join(lines[:2] + lines[3:]))  # and job2's line removed
+    swept(packed, [JOBS[0]])  # the damaged line's job runs again, loose; job2 has no loose file
+    with pytest.raises(CorruptFileError, match=r"does not match its entry in CHECKSUMS\.sha256"):
+        packs.load_trials(packed)
+
+
+def test_an_edited_line_with_its_checksum_recomputed_is_not_used_beside_a_damaged_one(
+    packed: Path,
+) -> None:
+    """Defect 6: with another line damaged, a line edited and re-checksummed was used."""
+    pack = packed / packs.PACK
+    lines = pack.read_text().splitlines(keepends=True)
+    lines[0] = lines[0][:40] + "#" + lines[0][41:]  # damaged
+    forged = json.loads(lines[1])
+    forged["data"]["result"]["square"] = 99.0
+    del forged["sha256"]
+    lines[1] = packs._line(forged["key"], forged["data"]) + "\n"  # a valid line, recomputed
+    pack.write_text("".join(lines))
+    with pytest.raises(CorruptFileError, match="so none of its lines is used"):
+        packs.find(packed, "job1")
+    swept(packed, [JOBS[0]])  # the damaged line's job runs again, loose
+    with pytest.raises(CorruptFileError, match="so none of its lines is used"):
+        packs.load_trials(packed)
 
 
 def test_a_removed_line_is_caught_by_the_manifest(packed: Path) -> None:
     pack = packed / packs.PACK
     lines = pack.read_text().splitlines(keepends=True)
     pack.write_text("".join(lines[:2] + lines[3:]))
-    with pytest.raises(CorruptFileError, match="lines were added, removed or reordered"):
+    with pytest.raises(CorruptFileError, match="damaged, added, removed, reordered or edited"):
         packs.load_trials(packed)
     with pytest.raises(CorruptFileError, match="is not listed in"):
         (packed / MANIFEST).write_text("")
@@ -116,7 +154,7 @@ def test_new_jobs_are_packed_in_after_an_update(packed: Path) -> None:
     more = [*JOBS, Job("job5", 5.0)]
     assert swept(packed, more) == ["job5"]
     assert [p.name for p in packed.glob("*.json")] == ["job5.json"]
-    [done] = packs.pack_new(packed.parent)
+    [done] = packs.pack_new(packed)
     assert (done.trials, done.moved) == (6, 1)
     assert swept(packed, more) == [] and not list(packed.glob("*.json"))
 

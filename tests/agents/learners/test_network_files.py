@@ -192,3 +192,32 @@ def test_save_is_atomic(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None
         _mlp(hidden=4).save(path)
     assert path.read_bytes() == before  # the old network, whole
     assert sorted(p.name for p in tmp_path.iterdir()) == ["n.npz"]  # no temporary file left
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+def test_weights_that_are_not_finite_are_refused_naming_the_first(
+    tmp_path: Path, value: float
+) -> None:
+    """Defect 7 of issue 35: a network file with NaN or infinite weights loaded and ran a trial."""
+    mlp = _mlp()
+    w1 = mlp.weights[1].copy()
+    w1[1, 3] = value
+    path = tmp_path / "net.npz"
+    np.savez(path, w0=mlp.weights[0], b0=mlp.biases[0], w1=w1, b1=mlp.biases[1], activation="tanh")
+    with pytest.raises(ValueError, match=r"net\.npz: w1\[1, 3\] = .*not finite\); allowed: finite"):
+        Mlp.load(path)
+
+
+def test_a_zero_width_layer_is_refused(tmp_path: Path) -> None:
+    """Defect 7 of issue 35: a layer of zero width loaded (its network outputs nothing useful)."""
+    path = tmp_path / "net.npz"
+    np.savez(
+        path,
+        w0=np.zeros((0, 8)),
+        b0=np.zeros(0),
+        w1=np.zeros((2, 0)),
+        b1=np.zeros(2),
+        activation="tanh",
+    )
+    with pytest.raises(ValueError, match=r"declares layer 0 as \(0, 8\): a layer of zero width"):
+        Mlp.load(path)

@@ -101,3 +101,36 @@ def test_register_without_benchmarl_says_which_extra(monkeypatch: pytest.MonkeyP
     monkeypatch.setitem(sys.modules, "benchmarl.environments", None)
     with pytest.raises(ImportError, match=r"pip install 'tavc-env\[benchmarl\]'"):
         family.register()
+
+
+def _alias_bomb(levels: int) -> str:
+    """`levels` levels of nine aliases each: a few hundred bytes that expand ninefold a level."""
+    lines = ["a0: &a0 [x]"]
+    for k in range(1, levels + 1):
+        lines.append(f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 9)}]")
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize(
+    "text",
+    [_alias_bomb(9), "a: &a [*a]\n", "max_steps: &n 100\nother: *n\n"],
+    ids=["nine_levels", "self_reference", "plain_alias"],
+)
+def test_a_task_yaml_with_aliases_is_refused_at_once_in_one_line(tmp_path: Path, text: str) -> None:
+    """Defect 2: nine levels of aliases (about 350 bytes) hung load_task_config (ninefold a
+    level); a self-referencing alias gave a raw RecursionError. Aliases are refused."""
+    import time
+
+    from tavc_env._files import CorruptFileError
+    from tavc_env.adapters.benchmarl.config import load_task_config
+    from tests.damage import no_hang
+
+    path = tmp_path / "bomb.yaml"
+    path.write_text(text)
+    start = time.perf_counter()
+    with no_hang(20), pytest.raises(CorruptFileError) as caught:  # a failure, not a hang
+        load_task_config("dahl2004", path)
+    assert time.perf_counter() - start < 5
+    message = str(caught.value)
+    assert "\n" not in message and str(path) in message
+    assert "aliases are refused" in message
