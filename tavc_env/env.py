@@ -67,7 +67,6 @@ from pettingzoo.utils.wrappers.order_enforcing import (
     AECOrderEnforcingIterator,
 )
 
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
 from tavc_env.engine.base import Advance, Engine
 from tavc_env.engine.simulation import ArenaSnapshot, Simulation
@@ -85,6 +84,7 @@ from tavc_env.options import (
     agent_names,
     resolve_env_args,
 )
+from tavc_env.validation import is_integer, is_number, require
 
 ENV_NAME = "tavc_arena_v1"
 # The names of the `phase` codes in infos: PHASES[info["phase"]]

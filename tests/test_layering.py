@@ -18,8 +18,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # (layer, module prefix): the longest matching prefix decides a module's layer.
 LAYERS: list[tuple[int, str]] = [
+    (0, "tavc_env.validation"),  # public: the argument checks every layer uses
+    (0, "tavc_env.safe_files"),  # public safe readers: every reader of the project uses them
+    # TEMPORARY re-export for the studies being moved out; removed when branch floors merges
     (0, "tavc_env._validation"),
-    (0, "tavc_env._files"),  # safe readers: every reader of the package uses them
     (0, "tavc_env.layout"),
     (0, "tavc_env.config"),
     (0, "tavc_env.metrics"),

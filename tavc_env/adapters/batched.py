@@ -46,8 +46,8 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
-from tavc_env._validation import is_integer, require
 from tavc_env.env import ArenaEnv, parallel_env
+from tavc_env.validation import is_integer, require
 
 Arrays = dict[str, Any]  # field -> stacked array (and "final_info" -> such a dict)
 EnvFactory = Callable[..., ArenaEnv[Any]]

@@ -25,9 +25,9 @@ from gymnasium import spaces
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
 import tavc_env
-from tavc_env._validation import require
 from tavc_env.adapters import checked_reward_scale
 from tavc_env.adapters.deciders import DecidersOnly
+from tavc_env.validation import require
 
 RLLIB_OBS_KEY = "observations"  # the key RLlib's action-masking module reads
 

@@ -22,8 +22,8 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
 import tavc_env
-from tavc_env._validation import is_integer, require
 from tavc_env.adapters import checked_reward_scale
+from tavc_env.validation import is_integer, require
 
 
 class SharedPolicyVecEnv(VecEnv):

@@ -25,7 +25,7 @@ import tavc_env
 from tavc_agents.driver import PolicyDriver
 from tavc_agents.learners.tavc import softmax_tavc
 from tavc_agents.policy import Policy
-from tavc_env._validation import is_integer, is_number, require
+from tavc_env.validation import is_integer, is_number, require
 
 
 def softmax_tavc_others(agent: str) -> Policy:

@@ -51,7 +51,7 @@ from tavc_agents.experiments.files import (
 )
 from tavc_agents.experiments.folders import hold_folder
 from tavc_agents.experiments.runner import TrialResult
-from tavc_env._files import parse_json
+from tavc_env.safe_files import parse_json
 
 PACK = "pack.jsonl"
 PACK_MAX_BYTES = 1024 * MIB  # the largest committed pack is about 6 MiB

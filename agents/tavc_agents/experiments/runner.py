@@ -24,11 +24,11 @@ import tavc_env
 from tavc_agents.driver import PolicyDriver
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
 from tavc_agents.policy import Policy, Team
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ARENA_KEYS
 from tavc_env.engine.tasks import Phase
 from tavc_env.env import completed_task_s
 from tavc_env.options import split_env_kwargs
+from tavc_env.validation import is_integer, is_number, require
 
 PolicyFactory = Callable[[str], Policy]
 EVENT_KINDS = ("break_down", "repair", "set_values")

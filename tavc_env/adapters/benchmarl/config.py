@@ -15,12 +15,12 @@ from pathlib import Path
 from typing import Any
 
 from tavc_env import scenarios
-from tavc_env._files import MIB, CorruptFileError, first_not_finite, read_text
-from tavc_env._validation import is_integer, require
 from tavc_env.adapters import checked_reward_scale
 from tavc_env.env import ArenaEnv, parallel_env
 from tavc_env.options import EnvOptions, resolve_env_args
+from tavc_env.safe_files import MIB, CorruptFileError, first_not_finite, read_text
 from tavc_env.scenarios import scenario_named
+from tavc_env.validation import is_integer, require
 
 ENV_NAME = "tavc"
 # The root of the shipped configuration, laid out as BenchMARL's own `conf` folder so that Hydra

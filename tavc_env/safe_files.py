@@ -12,8 +12,9 @@ unreadable, text that is not UTF-8, JSON that is garbled, nested too deeply, hol
 Python refuses to convert or a value that is not finite) raises `CorruptFileError`, a ValueError
 naming the file and what it is, in one line.
 
-This module sits at the lowest layer, so that the env's own readers (the BenchMARL task files)
-can use it; `tavc_agents.experiments.files` re-exports it with the record format on top.
+Public, at the lowest layer, so that the env's own readers (the BenchMARL task files) can use it
+as well as the agent library; `tavc_agents.experiments.files` re-exports it with the record format
+on top.
 """
 
 from __future__ import annotations
