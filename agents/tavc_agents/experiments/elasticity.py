@@ -11,15 +11,15 @@ only the f + s robots.
 
     alloc = cross_allocation(tavc_env.preset("dahl2004"), 2, 1, seed=0, hours=3.0,
                              warmup_s=600.0, skip_first=2)
-    run_fixed(alloc)  # tavc_agents.experiments.measurement
+    run_fixed(alloc)  # tavc_env.measurement
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from tavc_agents.experiments.measurement import FixedAllocation, two_circuit_allocation
 from tavc_env.config import ArenaConfig, Robot, preset_overrides
+from tavc_env.measurement import FixedAllocation, two_circuit_allocation
 
 FAST = Robot(0.30, "fast")
 SLOW = Robot(0.20, "slow")
