@@ -276,6 +276,13 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self.sim.schedule_repair(i)
         history.repair(i)
 
+    def current_infos(self) -> dict[str, dict[str, Any]]:
+        """Every agent's info as it stands now: what the last `reset` or `step` returned, with what
+        was done to the arena since written in by the env itself (a robot broken down since has
+        `action_required` False, `broken` True and the broken `phase`). For callers that act
+        between steps, such as a trial applying a breakdown, so that no caller writes infos."""
+        return self._infos(truncated=False)
+
     # -- the options, one by one (read-only: `options` holds them) -----------------------------
     @property
     def max_cycles(self) -> int:

@@ -25,7 +25,6 @@ from tavc_agents.driver import PolicyDriver
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
 from tavc_agents.policy import Policy, Team
 from tavc_env.config import ARENA_KEYS
-from tavc_env.engine.tasks import Phase
 from tavc_env.env import completed_task_s
 from tavc_env.options import split_env_kwargs
 from tavc_env.validation import is_integer, is_number, require
@@ -160,7 +159,7 @@ class TrialResult:
     learner_stats: dict[str, dict[str, Any]] = field(default_factory=dict)
     capped_steps: int = 0
     escapes: int = 0  # stuck robots' escape manoeuvres (navigation.STUCK_PATIENCE_S)
-    jams: int = 0  # jams the engine's detector found (see tavc_env.engine.simulation)
+    jams: int = 0  # jams the env's detector found (`TavcArenaEnv.jams`)
     jammed_s: float = 0.0  # simulated time spent jammed
     steps: int = 0
     wall_s: float = 0.0
@@ -444,8 +443,8 @@ def run_trial(
 def _apply(
     env: Any, event: Event, infos: dict[str, dict[str, Any]], result: TrialResult, now: float
 ) -> dict[str, dict[str, Any]]:
-    """Apply `event` to `env`; return the infos as they now stand (a robot that breaks down no
-    longer has to decide)."""
+    """Apply `event` to `env`; return the infos as they now stand (the env's own: a robot that
+    breaks down no longer has to decide)."""
     if event.kind == "set_values":
         env.set_circuit_values(event.values)
         result.events.append((now, event.kind, list(event.values or ())))
@@ -454,8 +453,7 @@ def _apply(
     agent = env.possible_agents[event.robot]
     if event.kind == "break_down":
         env.break_down(agent)
-        infos = {**infos, agent: {**infos[agent], "action_required": False, "broken": True}}
-        infos[agent]["phase"] = int(Phase.BROKEN)
+        infos = env.current_infos()  # the env writes its own infos: this robot no longer decides
     else:
         env.repair(agent)
     result.events.append((now, event.kind, event.robot))
