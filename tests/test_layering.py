@@ -47,6 +47,9 @@ LAYERS: list[tuple[int, str]] = [
     (5, "tavc_agents.learners"),
     (5, "tavc_agents.allocators"),
     (6, "tavc_agents.experiments"),
+    # TEMPORARY re-export for the studies being moved out; removed when branch floors merges
+    # (the runs elasticity needs live with its analysis now, a layer up)
+    (7, "tavc_agents.experiments.elasticity"),
     (6, "tavc_agents.envs"),
     (7, "tavc_agents.analysis"),
     (7, "tavc_agents.learning_runs"),  # what the examples that train with a library need

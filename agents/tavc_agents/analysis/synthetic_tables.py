@@ -41,8 +41,7 @@ from typing import Literal
 import numpy as np
 
 import tavc_env
-from tavc_agents.analysis.elasticity import Tables, elasticity_of
-from tavc_agents.experiments.elasticity import ALONE, CROWDED
+from tavc_agents.analysis.elasticity import ALONE, CROWDED, Tables, elasticity_of
 from tavc_env.config import ArenaConfig
 from tavc_env.twin import InterferenceTables, team_classes
 from tavc_env.validation import is_number, require

@@ -7,7 +7,7 @@ the learner for it (`w_i / t`, Equation 2). The observation is the paper's: the 
 learner's last circuit. An episode ends (truncated) after `episode_s` simulated seconds.
 
 Vectorised (`gymnasium.make_vec("tavc/dahl2004-v0", n, vectorization_mode="async")`, ids in
-`tavc_agents.envs.registration`), each copy is built in its worker from the id's arguments; the env
+`tavc_env.registration`), each copy is built in its worker from the id's arguments; the env
 also pickles at any point (the arena replays its episode, DESIGN.md section 2.3).
 """
 
