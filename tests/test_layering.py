@@ -36,6 +36,7 @@ LAYERS: list[tuple[int, str]] = [
     (3, "tavc_env.env"),
     (3, "tavc_env.twin"),  # the twin's env (and the package's public names)
     (3, "tavc_env.scenarios"),  # arenas with schedules and evaluation protocols
+    (3, "tavc_env.arena"),  # which arena: scenario or preset, by name or value, resolved once
     (3, "tavc_env.registration"),
     (3, "tavc_env.v0"),
     (3, "tavc_env"),  # the package's __init__: the public API, re-exporting the env

@@ -279,7 +279,7 @@ def evaluate(agent: Agent, settings: Settings) -> list[tuple[str, list[float], f
                 seed=s,
                 convergence_s=0.0,
                 measured_s=settings.eval_hours * 3600.0,
-                preset=settings.preset,
+                arena=settings.preset,
                 options=options,
             )
             for s in settings.eval_seeds
