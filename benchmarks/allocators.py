@@ -77,7 +77,7 @@ from tavc_agents.experiments.study import (
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
 from tavc_agents.model import CompletionModel, SpeedClasses, load_model, missing_model
 from tavc_env import make_config
-from tavc_env._validation import is_number
+from tavc_env.validation import is_number
 
 PresetName = Literal["dahl2004", "three_circuits_three_classes"]
 PRESETS: tuple[PresetName, ...] = ("dahl2004", "three_circuits_three_classes")

@@ -4,7 +4,7 @@ and the package, never each other):
 - the interference study's fixed-allocation runs (`Job`, `RUNS`): f fast and s slow robots held on
   their circuits, reduced to group rows;
 - the elasticity e of any arena, measured from those runs: `measure_elasticity(config)` runs the
-  cells e needs (`tavc_agents.experiments.elasticity`: f fast and s slow robots on circuit 0, for
+  cells e needs (`tavc_agents.analysis.elasticity`: f fast and s slow robots on circuit 0, for
   (1, 0), (0, 1) and f, s in 1..3) and returns e with its bootstrap interval over seeds
   (`tavc_agents.analysis.elasticity`);
 - the regime family: the arenas and learner conditions of the regime map, the passing test, the
@@ -37,11 +37,15 @@ from scipy import stats
 
 import tavc_env
 from tavc_agents.analysis import interference as ia
-from tavc_agents.analysis.elasticity import Elasticity, elasticity, seed_tables
+from tavc_agents.analysis.elasticity import (
+    CELLS,
+    Elasticity,
+    cross_allocation,
+    elasticity,
+    seed_tables,
+)
 from tavc_agents.analysis.measures import measure
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
-from tavc_agents.experiments.elasticity import CELLS, cross_allocation
-from tavc_agents.experiments.measurement import FixedAllocation, run_fixed
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.experiments.study import (
@@ -55,6 +59,7 @@ from tavc_agents.experiments.study import (
 from tavc_agents.experiments.sweep import arena_digest, json_jobs, run_jobs
 from tavc_agents.experiments.twin_batch import Learner
 from tavc_env.config import ArenaConfig
+from tavc_env.measurement import FixedAllocation, run_fixed
 from tavc_env.twin import InterferenceTables, build_tables
 
 ELASTICITY_BOOT_SEED = 2004

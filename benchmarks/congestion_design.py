@@ -78,7 +78,6 @@ from tavc_agents.analysis import interference as ia
 from tavc_agents.analysis.elasticity import Elasticity, elasticity, seed_tables
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.analysis.stats import ratio_ci
-from tavc_agents.experiments.measurement import two_circuit_allocation
 from tavc_agents.experiments.study import (
     Outcome,
     StudySettings,
@@ -89,7 +88,8 @@ from tavc_agents.experiments.study import (
     run_study,
 )
 from tavc_env import ArenaConfig, make_config
-from tavc_env._validation import is_number
+from tavc_env.measurement import two_circuit_allocation
+from tavc_env.validation import is_number
 
 GOVERNORS_M = (0.0, 0.56, 1.06, 1.56, 2.56)
 LOADING_S = (4.0, 20.0, 40.0)

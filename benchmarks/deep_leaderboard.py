@@ -225,7 +225,7 @@ def greedy_value(mlp: Mlp, scenario: str, seed: int, episode_s: float) -> float:
         convergence_s=0.0,
         measured_s=episode_s,
         snapshot_every_s=episode_s,
-        scenario=scenario,
+        arena={"scenario": scenario},
     )
     return value_per_hour(result)
 

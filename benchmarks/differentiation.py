@@ -60,8 +60,8 @@ from tavc_agents.experiments.study import (
     run_study,
 )
 from tavc_agents.experiments.sweep import TagValue, TrialSpec
-from tavc_env._validation import is_number
 from tavc_env.config import ARENA_REGIMES
+from tavc_env.validation import is_number
 
 REGIMES = ARENA_REGIMES  # also shipped as presets dahl2004, dahl2004_competence, ...
 DEFAULT_TEMPERATURES = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05)

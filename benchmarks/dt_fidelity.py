@@ -36,7 +36,6 @@ from tavc_agents.analysis.interference import group_rows
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.estimation import measured_rate
-from tavc_agents.experiments.measurement import FixedAllocation, run_fixed, two_circuit_allocation
 from tavc_agents.experiments.runner import run_trial
 from tavc_agents.experiments.study import (
     Outcome,
@@ -48,6 +47,7 @@ from tavc_agents.experiments.study import (
 )
 from tavc_agents.experiments.sweep import json_jobs
 from tavc_env import make_config
+from tavc_env.measurement import FixedAllocation, run_fixed, two_circuit_allocation
 
 HOMOG = "dahl2004_homogeneous"
 QUANTITIES = [f"t({n})" for n in range(1, 7)] + ["t fast (random)", "t slow (random)"]
@@ -129,8 +129,7 @@ def _random_run(job: Run) -> dict[str, Any]:
         seed=job.seed,
         convergence_s=600.0,
         measured_s=job.hours * 3600.0,
-        preset="dahl2004",
-        arena={"dt": job.dt},
+        arena={"preset": "dahl2004", "dt": job.dt},
     )
     t0, t1 = result.measured_window
     classes = np.array(result.speed_classes)[result.delivery_robot]

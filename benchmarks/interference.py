@@ -76,10 +76,9 @@ import tavc_env
 from arena_runs import ELASTICITY_BOOT_SEED, RUNS, Job, job_key
 from tavc_agents.analysis import elasticity as ea
 from tavc_agents.analysis import interference as ia
+from tavc_agents.analysis.elasticity import FAST, PER_CLASS, SLOW
 from tavc_agents.analysis.reports import Report, fmt_ci, have_matplotlib, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
-from tavc_agents.experiments.elasticity import FAST, PER_CLASS, SLOW
-from tavc_agents.experiments.measurement import two_circuit_allocation
 from tavc_agents.experiments.study import (
     Outcome,
     Overrides,
@@ -90,7 +89,8 @@ from tavc_agents.experiments.study import (
     refuse_invalid,
     run_study,
 )
-from tavc_env._validation import is_number
+from tavc_env.measurement import two_circuit_allocation
+from tavc_env.validation import is_number
 
 HOMOG = "dahl2004_homogeneous"
 HETERO = "dahl2004"

@@ -73,7 +73,7 @@ from tavc_agents.experiments.study import (
 )
 from tavc_agents.experiments.sweep import json_jobs
 from tavc_env.config import ArenaConfig, Robot
-from tavc_env.engine.simulation import JAM_MOTION_M, JAM_WINDOW_S
+from tavc_env.measurement import JAM_MOTION_M, JAM_WINDOW_S
 
 ARMS = ("dahl2004", "lanes", "random")
 FAST, SLOW = 0.30, 0.20
@@ -233,7 +233,7 @@ def run_one(trial: Trial) -> dict[str, Any]:
         convergence_s=0.0,
         measured_s=total,
         snapshot_every_s=total,
-        config=config,
+        arena=config,
     )
     n = config.n_robots
     gaps = longest_gaps(result.delivery_time_s, result.delivery_robot, n, result.end_s)

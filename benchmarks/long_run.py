@@ -23,7 +23,7 @@ or with `--update-reference` benchmarks/results/. Seeds run through the package'
 Long-run health of an arena: many simulated hours of a preset (`dahl2004` by default) through
 the PettingZoo env with random circuit choices; per robot the longest time without a completion, the steps that hit the
 step cap, escapes, and the closest approach of robots to each other and to the walls (sampled
-after every physics tick by `tavc_agents.experiments.measurement.SpacingMonitor`). The script is
+after every physics tick by `tavc_env.measurement.SpacingMonitor`). The script is
 `benchmarks/long_run.py`.
 """
 
@@ -42,7 +42,6 @@ import numpy as np
 
 import tavc_env
 from tavc_agents.analysis.reports import CsvAppender, Report, fmt_ci, markdown_table
-from tavc_agents.experiments.measurement import SpacingMonitor
 from tavc_agents.experiments.study import (
     Outcome,
     StudySettings,
@@ -52,9 +51,8 @@ from tavc_agents.experiments.study import (
     run_study,
 )
 from tavc_agents.experiments.sweep import json_jobs
-from tavc_env.engine.navigation import STUCK_PATIENCE_S
-from tavc_env.engine.tasks import PHASE_NAMES, Mode, Phase
 from tavc_env.env import completed_task_s
+from tavc_env.measurement import PHASE_NAMES, STUCK_PATIENCE_S, Mode, Phase, SpacingMonitor
 
 PRESET = "dahl2004"
 MODE_NAMES = {int(m): m.name.lower() for m in Mode}
@@ -370,7 +368,7 @@ def report_body(
         f"per seed, seeds {s.seed_list}. Every robot that must decide picks a circuit uniformly at "
         "random (numpy Generator seeded with [seed, 1]; the env is reset with `seed`). The robot "
         "spacing is sampled after every physics tick by an observer of the engine "
-        "(`tavc_agents.experiments.measurement.SpacingMonitor`).",
+        "(`tavc_env.measurement.SpacingMonitor`).",
         "",
         "## Verdict",
         "",

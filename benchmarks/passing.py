@@ -64,8 +64,8 @@ from tavc_agents.model import (
     missing_model,
 )
 from tavc_env import ArenaConfig
-from tavc_env._validation import require
 from tavc_env.twin import InterferenceTables
+from tavc_env.validation import require
 
 TEMPERATURES = (0.002, 0.005, 0.01)
 CONDITIONS = (*(arena_runs.softmax_condition(t) for t in TEMPERATURES), "epsilon_0.1", "random")

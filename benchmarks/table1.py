@@ -69,7 +69,7 @@ from tavc_agents.experiments.study import (
 )
 from tavc_agents.experiments.sweep import TRIALS, TagValue, TrialSpec, saved_results
 from tavc_env import PRESETS, make_config, metrics
-from tavc_env._validation import is_number, require
+from tavc_env.validation import is_number, require
 
 # The paper's Table 1 (mu_a, s_a: modified TAVC; mu_r, s_r: random; T: Equation 3).
 PAPER_TABLE1: dict[tuple[int, int], tuple[float, float, float, float, float]] = {

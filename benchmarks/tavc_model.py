@@ -73,7 +73,7 @@ from tavc_agents.model import (
     robot_circuits,
 )
 from tavc_env import PRESETS, ArenaConfig, make_config
-from tavc_env._validation import is_number
+from tavc_env.validation import is_number
 
 
 @dataclass(frozen=True, kw_only=True)

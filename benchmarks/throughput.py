@@ -27,7 +27,7 @@ loop (ticks per CPU second, paired by round), peak memory. Goal (issue 24): at 6
 Throughput of the arena by team size against two yardsticks of the same physics, in CPU time.
 
 For each case (a team size, event-driven or fixed-interval stepping) the PettingZoo env runs with
-random choices (`tavc_agents.experiments.measurement.random_choice_run`), and beside it, in the
+random choices (`tavc_agents.experiments.timing.random_choice_run`), and beside it, in the
 same process and round:
 
 * `floor`: a bare pymunk loop of the same bodies (the engine's `World`: same radius, mass, dt,
@@ -55,12 +55,13 @@ from typing import Any, ClassVar
 import tavc_env
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
-from tavc_agents.experiments.measurement import TEAM_SIZES as SIZES
-from tavc_agents.experiments.measurement import physics_floor, physics_replay, random_choice_run
-from tavc_agents.experiments.measurement import team_config as config_for
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.study import Outcome, StudySettings, run_study
+from tavc_agents.experiments.timing import TEAM_SIZES as SIZES
+from tavc_agents.experiments.timing import random_choice_run
+from tavc_agents.experiments.timing import team_config as config_for
 from tavc_env.config import ArenaConfig
+from tavc_env.measurement import physics_floor, physics_replay
 
 SIM_HOURS = {6: 5.0, 24: 1.0, 96: 0.25, 384: 0.05}  # per repeat, about a CPU second or less each
 # Goals (issue 24): at 6 robots the public parallel API reaches 95 % of the bare loop's speed

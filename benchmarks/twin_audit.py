@@ -57,8 +57,8 @@ from tavc_agents.experiments.study import (
     run_study,
 )
 from tavc_agents.experiments.sweep import json_jobs, run_jobs
-from tavc_env._validation import is_number
 from tavc_env.twin import InterferenceTables, random_allocation_run
+from tavc_env.validation import is_number
 
 Row = dict[str, Any]
 Variant = Literal["physics", "twin_tables", "twin_audited_switch"]

@@ -69,9 +69,9 @@ from tavc_agents.experiments.study import (
     refuse_invalid,
     run_study,
 )
-from tavc_env._validation import is_number, require
 from tavc_env.adapters.batched import ArenaGroup, BatchedArenaEnv
 from tavc_env.env import parallel_env
+from tavc_env.validation import is_number, require
 
 __all__ = ["Settings", "run"]
 

@@ -6,7 +6,9 @@ PettingZoo environment on pymunk physics.
     observations, infos = env.reset(seed=0)
 
 The arena is an `ArenaConfig` (a preset, or `config=`), the env's own options an `EnvOptions`
-(`options=`); keyword overrides of either go straight to `parallel_env`.
+(`options=`); keyword overrides of either go straight to `parallel_env`. Which arena a caller
+means (a scenario or a preset, by name or as a value) is resolved in one place,
+`tavc_env.resolve_arena` (`tavc_env.arena`).
 
 `tavc_env.twin_parallel_env(tables=..., preset=...)` is the model twin: the same decision process
 with task times drawn from measured interference tables (`tavc_env.twin`), for fast what-if
@@ -14,6 +16,7 @@ studies; never a replacement for the physics.
 """
 
 from tavc_env import scenarios
+from tavc_env.arena import Arena, resolve_arena
 from tavc_env.config import (
     PRESETS,
     ArenaConfig,
@@ -55,6 +58,7 @@ __all__ = [
     "REGISTRY_ID",
     "REGISTRY_ID_V0",
     "SCENARIOS",
+    "Arena",
     "ArenaConfig",
     "Breakdown",
     "Circuit",
@@ -76,6 +80,7 @@ __all__ = [
     "parallel_env",
     "preset",
     "raw_env",
+    "resolve_arena",
     "robots_from_speeds",
     "scaled_config",
     "scenarios",

@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from tavc_env._validation import (
+from tavc_env.layout import WALL_CLEARANCE_M, stack_rows, waiting_rows
+from tavc_env.validation import (
     integer,
     is_integer,
     point,
@@ -24,7 +25,6 @@ from tavc_env._validation import (
     require,
     require_together,
 )
-from tavc_env.layout import WALL_CLEARANCE_M, stack_rows, waiting_rows
 
 Point = tuple[float, float]
 MAX_SPEED_M_S = 2.0  # a Pioneer-sized robot; far above the 0.2-0.3 m/s of the paper

@@ -67,7 +67,6 @@ from pettingzoo.utils.wrappers.order_enforcing import (
     AECOrderEnforcingIterator,
 )
 
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
 from tavc_env.engine.base import Advance, Engine
 from tavc_env.engine.simulation import ArenaSnapshot, Simulation
@@ -85,6 +84,7 @@ from tavc_env.options import (
     agent_names,
     resolve_env_args,
 )
+from tavc_env.validation import is_integer, is_number, require
 
 ENV_NAME = "tavc_arena_v1"
 # The names of the `phase` codes in infos: PHASES[info["phase"]]
@@ -275,6 +275,13 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         history = self._recorder()
         self.sim.schedule_repair(i)
         history.repair(i)
+
+    def current_infos(self) -> dict[str, dict[str, Any]]:
+        """Every agent's info as it stands now: what the last `reset` or `step` returned, with what
+        was done to the arena since written in by the env itself (a robot broken down since has
+        `action_required` False, `broken` True and the broken `phase`). For callers that act
+        between steps, such as a trial applying a breakdown, so that no caller writes infos."""
+        return self._infos(truncated=False)
 
     # -- the options, one by one (read-only: `options` holds them) -----------------------------
     @property

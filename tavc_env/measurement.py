@@ -1,5 +1,8 @@
-"""Measuring the physics engine: runs with fixed allocations, and an observer that counts the ticks
-each robot spends in each mode of its task.
+"""Measuring the physics engine: runs with fixed allocations, an observer that counts the ticks
+each robot spends in each mode of its task (`ModeTicks`, by `Mode`), one that watches the spacing
+between robots (`SpacingMonitor`), and the bare-physics yardsticks of the engine's speed
+(`CommandRecorder`, `physics_replay`, `physics_floor`; the env's own speed is timed by
+`tavc_agents.experiments.timing`).
 
 Observers attach with `Simulation.add_observer` and only read the simulation's public views, so a
 measured run follows exactly the trajectory of an unmeasured one. What the runs measure feeds the
@@ -13,6 +16,7 @@ interference studies and the model twin's tables (`tavc_env.twin.measure`).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -20,8 +24,19 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from tavc_env.config import ArenaConfig, make_config
+
+# Public here, for what measures the engine from outside it: the modes ModeTicks counts, the task
+# phases, the jam detector's and the stuck escape's thresholds, and whether the compiled controller
+# is cached (a first run compiles it)
+from tavc_env.engine.navigation import STUCK_PATIENCE_S as STUCK_PATIENCE_S
+from tavc_env.engine.navigation import compiled_cache_ready as compiled_cache_ready
+from tavc_env.engine.simulation import JAM_MOTION_M as JAM_MOTION_M
+from tavc_env.engine.simulation import JAM_WINDOW_S as JAM_WINDOW_S
 from tavc_env.engine.simulation import EngineEvent, Simulation
-from tavc_env.engine.tasks import Mode
+from tavc_env.engine.tasks import PHASE_NAMES as PHASE_NAMES
+from tavc_env.engine.tasks import Mode as Mode
+from tavc_env.engine.tasks import Phase as Phase
+from tavc_env.engine.world import World
 
 _EPS = 1e-9
 
@@ -191,3 +206,125 @@ def run_fixed(alloc: FixedAllocation) -> FixedRun:
         if sim.time_s > plan.end_s + 3600.0:
             raise RuntimeError(f"{alloc}: tasks still pending an hour after the end of the run")
     return FixedRun(alloc, classes, tasks, mode_ticks.counts, time.perf_counter() - wall0)
+
+
+class SpacingMonitor:
+    """The closest approach of two robots (centre to centre) and of a robot to a wall, and the
+    ticks with two robots more than 1 cm into each other, sampled after every physics tick."""
+
+    def __init__(self, config: ArenaConfig) -> None:
+        self.radius = config.robot_radius
+        self.width = config.width
+        self.height = config.height
+        self.dt = config.dt
+        self.iu = np.triu_indices(config.n_robots, 1)
+        self.ticks = 0
+        self.min_dist = math.inf
+        self.min_dist_at: dict[str, Any] = {}
+        self.min_wall = math.inf
+        self.min_wall_at: dict[str, Any] = {}
+        self.overlap_ticks = 0
+
+    def on_tick(self, sim: Simulation, events: list[EngineEvent]) -> None:
+        self.ticks += 1
+        present = ~sim.broken()
+        pos = sim.positions_view
+        d = pos[:, None, :] - pos[None, :, :]
+        dist = np.hypot(d[..., 0], d[..., 1])[self.iu]
+        both = (present[:, None] & present[None, :])[self.iu]
+        dist = np.where(both, dist, np.inf)
+        k = int(np.argmin(dist))
+        dmin = float(dist[k])
+        if dmin < 2 * self.radius - 0.01:
+            self.overlap_ticks += 1
+        if dmin < self.min_dist:
+            self.min_dist = dmin
+            i, j = int(self.iu[0][k]), int(self.iu[1][k])
+            self.min_dist_at = {
+                "time_s": round(self.ticks * self.dt, 1),
+                "pair": (i, j),
+                "where": tuple(round(v, 2) for v in (pos[i] + pos[j]) / 2),
+            }
+        x, y = pos[present, 0], pos[present, 1]
+        clear = np.minimum(np.minimum(x, self.width - x), np.minimum(y, self.height - y))
+        c = float(clear.min()) - self.radius if clear.size else math.inf
+        if c < self.min_wall:
+            self.min_wall = c
+            self.min_wall_at = {"time_s": round(self.ticks * self.dt, 1)}
+
+
+# -- the engine's speed ----------------------------------------------------------------------------
+# Speeds are measured in CPU seconds of the measuring process (`time.process_time`): on a shared
+# machine wall time also counts the other processes' turns.
+
+
+class CommandRecorder:
+    """Every tick's velocity commands of a simulation (an observer: it changes nothing), for
+    `physics_replay`: attach it to a run's `Simulation`, run, then take `recording(sim)`."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.start = sim.positions()
+        self.commands: list[np.ndarray] = []
+        sim.add_observer(self)
+
+    def on_tick(self, sim: Simulation, events: list[EngineEvent]) -> None:
+        if not sim.world.in_space.all():
+            raise ValueError("a replay of the physics needs every robot on the floor throughout")
+        self.commands.append(sim.world.velocity_out.copy())
+
+    def recording(self, sim: Simulation) -> dict[str, np.ndarray]:
+        sim.remove_observer(self)
+        commands = np.array(self.commands).reshape(-1, sim.config.n_robots, 2)
+        return {"start": self.start, "commands": commands, "end": sim.positions()}
+
+
+def bare_world(config: ArenaConfig, start: np.ndarray) -> World:
+    """The engine's `World` (same space, walls, bodies, solver settings) with its robots at
+    `start`, as a reset leaves them."""
+    world = World(config)
+    world.place(start)
+    return world
+
+
+def physics_replay(config: ArenaConfig, recorded: dict[str, Any]) -> dict[str, Any]:
+    """Time the env's own physics without the env: the velocity commands of a recorded run
+    (`random_choice_run(..., record=True)`) set tick after tick on a bare `World` placed where the
+    run began (pymunk's batch velocity write, the cheapest pymunk offers, and `space.step`).
+    `exact`: the replay ended exactly where the run ended."""
+    world = bare_world(config, recorded["start"])
+    commands = recorded["commands"]
+    space, dt = world.space, config.dt
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    for velocity in commands:
+        world.set_velocities(velocity)
+        space.step(dt)
+    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    ticks = len(commands)
+    exact = bool(np.array_equal(world.positions(), recorded["end"]))
+    return {"cpu_s": cpu, "wall_s": wall, "sim_s": ticks * dt, "ticks": ticks, "exact": exact}
+
+
+def physics_floor(config: ArenaConfig, seed: int, ticks: int, each_tick: bool) -> dict[str, float]:
+    """Time the bare-physics floor: the engine's `World` (same space, walls, bodies, solver
+    settings) placed as at reset, each robot's velocity set to its top speed in a random
+    direction, then `ticks` pymunk steps (with the velocities set again every tick if
+    `each_tick`)."""
+    sim = Simulation(config)
+    sim.reset(np.random.default_rng(seed))  # robots at the sinks, as at the start of a trial
+    world = bare_world(config, sim.positions())
+    rng = np.random.default_rng([seed, 2])
+    angle = rng.uniform(-math.pi, math.pi, config.n_robots)
+    speed = np.array([r.speed for r in config.robots])
+    velocity = np.stack([speed * np.cos(angle), speed * np.sin(angle)], axis=1)
+    world.set_velocities(velocity)
+    space, dt = world.space, config.dt
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    if each_tick:
+        for _ in range(ticks):
+            world.set_velocities(velocity)
+            space.step(dt)
+    else:
+        for _ in range(ticks):
+            space.step(dt)
+    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    return {"cpu_s": cpu, "wall_s": wall, "sim_s": ticks * dt, "ticks": ticks, "decisions": 0}

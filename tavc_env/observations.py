@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from tavc_env._validation import require
 from tavc_env.config import ArenaConfig
 from tavc_env.engine.tasks import Phase
+from tavc_env.validation import require
 
 OBSERVATION_MODES = ("paper", "paper_id", "rich")
 OBSERVATION_FORMATS = ("dict", "box")

@@ -18,10 +18,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ARENA_KEYS, ArenaConfig, make_config
 from tavc_env.engine.simulation import JAM_WINDOW_S
 from tavc_env.observations import check_observation_args
+from tavc_env.validation import is_integer, is_number, require
 
 RENDER_MODES = ("human", "rgb_array")
 TIME_UNITS = {"ms": 1000.0, "s": 1.0}

@@ -24,10 +24,10 @@ from typing import Any
 import numpy as np
 from pettingzoo.utils.env import AECEnv
 
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, Breakdown, make_config
 from tavc_env.env import TavcArenaEnv, aec_view
 from tavc_env.options import OPTION_KEYS, EnvOptions
+from tavc_env.validation import is_integer, is_number, require
 
 METRIC = "value_per_hour"
 """The evaluation metric of every scenario: delivered value per simulated hour over the whole

@@ -13,8 +13,8 @@ from typing import Any, ClassVar
 import numpy as np
 from pettingzoo.utils.env import AECEnv
 
-from tavc_env._validation import require
 from tavc_env.env import PHASES, TavcArenaEnv, aec_view, completed_task_s
+from tavc_env.validation import require
 
 ENV_NAME_V0 = "tavc_arena_v0"
 

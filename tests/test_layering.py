@@ -18,8 +18,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # (layer, module prefix): the longest matching prefix decides a module's layer.
 LAYERS: list[tuple[int, str]] = [
-    (0, "tavc_env._validation"),
-    (0, "tavc_env._files"),  # safe readers: every reader of the package uses them
+    (0, "tavc_env.validation"),  # public: the argument checks every layer uses
+    (0, "tavc_env.safe_files"),  # public safe readers: every reader of the project uses them
     (0, "tavc_env.layout"),
     (0, "tavc_env.config"),
     (0, "tavc_env.metrics"),
@@ -34,6 +34,7 @@ LAYERS: list[tuple[int, str]] = [
     (3, "tavc_env.env"),
     (3, "tavc_env.twin"),  # the twin's env (and the package's public names)
     (3, "tavc_env.scenarios"),  # arenas with schedules and evaluation protocols
+    (3, "tavc_env.arena"),  # which arena: scenario or preset, by name or value, resolved once
     (3, "tavc_env.registration"),
     (3, "tavc_env.v0"),
     (3, "tavc_env"),  # the package's __init__: the public API, re-exporting the env
@@ -197,6 +198,57 @@ def test_the_engine_knows_nothing_of_rl_libraries() -> None:
             imported = imported_modules(path, name)
             rl = sorted(m for m in imported if m.split(".")[0] in {"gymnasium", "pettingzoo"})
             assert not rl, f"{name} imports {rl}"
+
+
+# What lies under the env's public floors: the engine's modules (the agent library reaches the
+# engine through the public API: `tavc_env.Simulation`, `tavc_env.measurement`, the env's methods
+# and infos) and any name starting with "_". The study programs of benchmarks/ are held to it too.
+INTERNALS = ("tavc_env.engine.", *(f"{m}." for m in ENGINE_ONLY[1:]))
+
+
+def private_or_internal(target: str) -> bool:
+    """Whether an imported `tavc_env` module or name is private or an engine internal."""
+    if not target.startswith("tavc_env."):
+        return False
+    parts = target.split(".")
+    private = any(
+        p.startswith("_") and not (p.startswith("__") and p.endswith("__")) for p in parts
+    )
+    return private or target.startswith(INTERNALS)
+
+
+def test_nothing_outside_the_env_uses_its_private_floors() -> None:
+    examples = {f"docs.examples.{p.stem}": p for p in sorted(ROOT.glob("docs/examples/*.py"))}
+    users = {
+        name: path
+        for name, path in {**MODULES, **examples}.items()
+        if not name.startswith("tavc_env")
+    }
+    found = [
+        f"{name} imports {target}"
+        for name, path in users.items()
+        for target in sorted(imported_modules(path, name))
+        if private_or_internal(target)
+    ]
+    assert not found, "private names or engine internals used outside tavc_env:\n" + "\n".join(
+        found
+    )
+
+
+def test_the_floor_check_sees_private_names(tmp_path: Path) -> None:
+    path = tmp_path / "probe.py"
+    path.write_text(
+        "from tavc_env._validation import require\nfrom tavc_env.env import _hidden\n"
+        "from tavc_env.engine.tasks import Phase\nfrom tavc_env import __version__, engine\n"
+    )
+    found = {t for t in imported_modules(path, "probe") if private_or_internal(t)}
+    assert found == {
+        "tavc_env._validation",
+        "tavc_env._validation.require",
+        "tavc_env.env._hidden",
+        "tavc_env.engine.tasks",
+        "tavc_env.engine.tasks.Phase",
+    }
 
 
 def test_the_layering_test_sees_function_level_imports(tmp_path: Path) -> None:

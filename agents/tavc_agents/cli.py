@@ -2,6 +2,7 @@
 
     tavc trial --allocator softmax_tavc --measured-h 2            # one trial, progress bar, summary
     tavc trial --allocator greedy --preset three_circuits_three_classes
+    tavc trial --scenario bad_start                         # a scenario of the suite
     tavc record --allocator random --minutes 5 --out arena.gif
     tavc plot timeline trial.json --out timeline.png        # figures from saved results
 
@@ -44,20 +45,38 @@ MIN_FPS, MAX_FPS = 0.01, 100.0
 """The frame rates a GIF can hold: a frame's delay is 1 to 65535 hundredths of a second."""
 
 
-def _allocator(args: argparse.Namespace) -> Any:
+def _arena(args: argparse.Namespace) -> Any:
+    """The arena the command line names: `--scenario` or `--preset` (default dahl2004), with the
+    `--set` overrides, resolved (and any clash refused) by `tavc_env.resolve_arena`."""
+    from tavc_agents.experiments.command_line import parse_key_values
+    from tavc_env import resolve_arena
+
+    overrides = parse_key_values(args.set, "--set", "source_service_s=15")
+    choices = sorted(k for k in overrides if k in ("scenario", "preset", "config"))
+    if choices:
+        raise ValueError(
+            f"--set {choices[0]}={overrides[choices[0]]} is invalid; allowed: arena overrides "
+            "(say which arena with --preset or --scenario)"
+        )
+    return resolve_arena({"scenario": args.scenario, "preset": args.preset, **overrides})
+
+
+def _allocator(args: argparse.Namespace, arena: Any) -> Any:
+    from tavc_agents.experiments.command_line import parse_key_values
     from tavc_agents.experiments.registry import make_allocator
-    from tavc_agents.experiments.study import parse_key_values
     from tavc_agents.model import missing_model, model_path, read_model
 
     params = parse_key_values(args.param, "--param", "temperature=0.01")
     if args.allocator in NEEDS_MODEL and "model" not in params and "circuits" not in params:
-        problem = missing_model(args.preset, args.model)
+        # a scenario's reference model, or the preset's
+        preset = arena.scenario.model if arena.scenario is not None else arena.preset
+        problem = missing_model(preset or "dahl2004", args.model)
         if problem is not None:
             raise ValueError(
                 f"allocator {args.allocator!r} needs the TAVC model of the arena: {problem}; "
                 "allowed: --model PATH (a model.json written by python benchmarks/tavc_model.py)"
             )
-        path = model_path(args.preset, args.model)
+        path = model_path(preset or "dahl2004", args.model)
         try:
             params["model"] = read_model(path)
         except ValueError as error:
@@ -70,9 +89,18 @@ def _allocator(args: argparse.Namespace) -> Any:
 
 def _trial_options(parser: argparse.ArgumentParser) -> None:
     from tavc_agents.experiments.registry import allocator_names
-    from tavc_env import PRESETS
+    from tavc_env import PRESETS, SCENARIOS
 
-    parser.add_argument("--preset", default="dahl2004", choices=sorted(PRESETS))
+    parser.add_argument(
+        "--preset", default=None, choices=sorted(PRESETS), help="the arena (default: dahl2004)"
+    )
+    parser.add_argument(
+        "--scenario",
+        default=None,
+        metavar="NAME",
+        help=f"a scenario of the suite instead ({', '.join(sorted(SCENARIOS))}, or its id "
+        "tavc/<name>-v<version>): its arena and its priority shifts",
+    )
     parser.add_argument(  # the names now, with plugins' (tavc.allocators entry points)
         "--allocator",
         default="softmax_tavc",
@@ -91,7 +119,7 @@ def _trial_options(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="arena override, e.g. --set source_service_s=15 (repeatable)",
+        help="arena override of the preset, e.g. --set source_service_s=15 (repeatable)",
     )
     parser.add_argument(
         "--model",
@@ -111,7 +139,7 @@ def _trial_options(parser: argparse.ArgumentParser) -> None:
 def say_if_compiling() -> None:
     """Say, on stderr, that the robots' controller is being compiled when numba's cache does not
     hold it (the first run in a fresh environment sat silent for a minute or more)."""
-    from tavc_env.engine.navigation import compiled_cache_ready
+    from tavc_env.measurement import compiled_cache_ready
 
     if compiled_cache_ready() is False:
         print(
@@ -126,12 +154,9 @@ def cmd_trial(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from tavc_agents.experiments.runner import run_trial
-    from tavc_agents.experiments.study import arena_overrides
-    from tavc_env import make_config
 
-    allocator = _allocator(args)  # bad parameters and arenas are refused before the run starts
-    overrides = arena_overrides(args.set)
-    make_config(args.preset, **overrides)
+    arena = _arena(args)  # bad arenas and parameters are refused before the run starts
+    allocator = _allocator(args, arena)
     total = args.convergence_h + args.measured_h
     say_if_compiling()
     bars: list[Any] = []  # made at the first report, so a trial refused as it starts shows none
@@ -152,8 +177,7 @@ def cmd_trial(args: argparse.Namespace) -> int:
             convergence_s=args.convergence_h * 3600.0,
             measured_s=args.measured_h * 3600.0,
             progress=progress,
-            preset=args.preset,
-            arena=overrides,
+            arena=arena,
         )
     finally:
         for bar in bars:
@@ -180,7 +204,7 @@ def summary(result: TrialResult, allocator: str) -> str:
     ]
     classes = sorted(set(result.speed_classes), key=result.speed_classes.index)
     lines = [
-        f"{allocator} on {result.env_kwargs.get('preset', 'dahl2004')}, seed {result.seed}: "
+        f"{allocator} on {_arena_name(result.env_kwargs)}, seed {result.seed}: "
         f"measured {(t1 - t0) / 3600:g} h after {t0 / 3600:g} h",
         f"  delivered value per robot per 10 s: {perf:.4f}",
         "  circuit switches per robot per hour: "
@@ -196,6 +220,15 @@ def summary(result: TrialResult, allocator: str) -> str:
     return "\n".join(lines)
 
 
+def _arena_name(env_kwargs: dict[str, Any]) -> str:
+    """How a trial's record names its arena: its scenario, or its preset (default dahl2004)."""
+    if "scenario" in env_kwargs:
+        return f"scenario {env_kwargs['scenario']}"
+    if "config" in env_kwargs:
+        return "a given ArenaConfig"
+    return str(env_kwargs.get("preset", "dahl2004"))
+
+
 def cmd_record(args: argparse.Namespace) -> int:
     from PIL import Image  # the render extra (`missing_extra` names it if absent)
 
@@ -205,7 +238,6 @@ def cmd_record(args: argparse.Namespace) -> int:
             f"--out {args.out} is invalid; allowed: a .gif (animation) or .png (last frame) file"
         )
     from tavc_agents.experiments.runner import run_trial
-    from tavc_agents.experiments.study import arena_overrides
     from tavc_env import EnvOptions
 
     frames: list[Any] = []
@@ -214,14 +246,14 @@ def cmd_record(args: argparse.Namespace) -> int:
     def grab(env: Any) -> None:
         frames.append(Image.fromarray(env.render()))
 
+    arena = _arena(args)
     run_trial(
-        _allocator(args),
+        _allocator(args, arena),
         seed=args.seed,
         convergence_s=0.0,
         measured_s=args.minutes * 60.0,
         on_step=grab,
-        preset=args.preset,
-        arena=arena_overrides(args.set),
+        arena=arena,
         options=EnvOptions(render_mode="rgb_array", decision_interval_s=args.frame_s),
     )
     if kind == ".png":

@@ -29,7 +29,7 @@ from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.learners.network import Mlp, NetworkTeam
 from tavc_env import make_config
-from tavc_env._validation import is_number, require
+from tavc_env.validation import is_number, require
 
 # Rewards are w / t with t in ms (about 0.03): the examples scale them so that networks see O(1).
 REWARD_SCALE = 100.0

@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 
 from tavc_env import ArenaConfig, Robot, metrics
-from tavc_env._files import MIB, kind_of, read_json
-from tavc_env._validation import is_number, require
+from tavc_env.safe_files import MIB, kind_of, read_json
+from tavc_env.validation import is_number, require
 
 REFERENCE_MODELS = Path(__file__).parent / "data" / "models"
 MODEL_MAX_BYTES = 16 * MIB  # the largest shipped model (large_team.json) is 46 KiB
@@ -374,7 +374,7 @@ def missing_model(preset: str, path: Path | None = None) -> str | None:
 
 def read_model(path: str | Path) -> Any:
     """The JSON of the model file `path`, read safely (a regular file of at most
-    `MODEL_MAX_BYTES`, finite numbers; `tavc_env._files`): a ValueError naming it otherwise."""
+    `MODEL_MAX_BYTES`, finite numbers; `tavc_env.safe_files`): a ValueError naming it otherwise."""
     return read_json(path, MODEL_MAX_BYTES, "TAVC model (model.json)")
 
 

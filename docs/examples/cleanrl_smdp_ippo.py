@@ -36,7 +36,7 @@ from tavc_agents.allocators.baselines import RandomAllocator, StayAllocator
 from tavc_agents.allocators.teams import StaticAllocator
 from tavc_agents.experiments.runner import TrialResult, run_trial
 from tavc_agents.model import load_model, missing_model
-from tavc_env._validation import is_number, require
+from tavc_env.validation import is_number, require
 
 
 @dataclass(frozen=True)
@@ -279,7 +279,7 @@ def evaluate(agent: Agent, settings: Settings) -> list[tuple[str, list[float], f
                 seed=s,
                 convergence_s=0.0,
                 measured_s=settings.eval_hours * 3600.0,
-                preset=settings.preset,
+                arena=settings.preset,
                 options=options,
             )
             for s in settings.eval_seeds

@@ -3,7 +3,7 @@ stepped together in worker processes (`batched`), and the adapters that need a l
 `sb3`, and `benchmarl`'s task classes; each imports its library, which is an optional extra). The
 engine and the env know nothing of them."""
 
-from tavc_env._validation import is_number, require
+from tavc_env.validation import is_number, require
 
 
 def checked_reward_scale(value: object) -> float:

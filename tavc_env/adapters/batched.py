@@ -1,9 +1,9 @@
 """N arenas stepped together, in worker processes, with every result stacked into arrays.
 
 `BatchedArenaEnv(n_envs, workers=w, env_kwargs={...})` holds `n_envs` copies of the arena (each
-built by `make_env(**env_kwargs)`, by default `tavc_env.parallel_env`), split into `w` contiguous
-groups, one per worker process (`workers=0`: all in this process, for debugging and for one
-arena). A step sends each worker its groups' actions and returns, with `N = n_envs` and `n` robots:
+built by `make_env(**env_kwargs)`, by default `tavc_env.arena.make_env`: a scenario or a preset),
+split into `w` contiguous groups, one per worker process (`workers=0`: all in this process, for
+debugging and for one arena). A step sends each worker its groups' actions and returns, with `N = n_envs` and `n` robots:
 
 - `observations`: `(N, n, k)` float32, the env's observation vector of every robot;
 - `rewards`: `(N, n)` float64; `terminated`, `truncated`: `(N,)` bool (a whole arena ends at once);
@@ -46,8 +46,9 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
-from tavc_env._validation import is_integer, require
-from tavc_env.env import ArenaEnv, parallel_env
+from tavc_env.arena import make_env as arena_env
+from tavc_env.env import ArenaEnv
+from tavc_env.validation import is_integer, require
 
 Arrays = dict[str, Any]  # field -> stacked array (and "final_info" -> such a dict)
 EnvFactory = Callable[..., ArenaEnv[Any]]
@@ -313,7 +314,7 @@ class BatchedArenaEnv:
             every arena in this process. Several arenas per worker spread the cost of the pipes.
         env_kwargs: arguments of `make_env` (e.g. `preset`, `max_sim_time_s`,
             `observation_mode`); every arena gets the same.
-        make_env: builds one arena, an `ArenaEnv` (default `tavc_env.parallel_env`; the twin's
+        make_env: builds one arena, an `ArenaEnv` (default `tavc_env.arena.make_env`, which takes a `scenario` or a `preset`; the twin's
             `twin_parallel_env` works too). With the `spawn` start method it must be importable
             (a module-level function), as multiprocessing sends it by name.
         start_method: multiprocessing's (`fork`, `spawn`, `forkserver`); None: the platform's
@@ -328,7 +329,7 @@ class BatchedArenaEnv:
         *,
         workers: int = 0,
         env_kwargs: Mapping[str, Any] | None = None,
-        make_env: EnvFactory = parallel_env,
+        make_env: EnvFactory = arena_env,
         start_method: str | None = None,
     ) -> None:
         require(is_integer(n_envs) and n_envs >= 1, "n_envs", n_envs, "an integer >= 1")

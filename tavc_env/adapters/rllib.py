@@ -24,10 +24,10 @@ import numpy as np
 from gymnasium import spaces
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
 
-import tavc_env
-from tavc_env._validation import require
 from tavc_env.adapters import checked_reward_scale
 from tavc_env.adapters.deciders import DecidersOnly
+from tavc_env.arena import make_env
+from tavc_env.validation import require
 
 RLLIB_OBS_KEY = "observations"  # the key RLlib's action-masking module reads
 
@@ -37,7 +37,8 @@ class RllibArenaEnv(MultiAgentEnv):
 
     - `deciders_only`: True (default) for the semi-Markov view, False for every robot every step;
     - `reward_scale`: rewards are multiplied by it (the env's `w / t`, t in ms, is about 0.03);
-    - every other key: an argument of `tavc_env.parallel_env`.
+    - every other key: an env argument (`tavc_env.arena.make_env`): a `scenario`, or a `preset`
+      or `config` with arena overrides, and env options.
     """
 
     def __init__(self, config: Mapping[str, Any] | None = None) -> None:
@@ -46,7 +47,7 @@ class RllibArenaEnv(MultiAgentEnv):
         deciders_only = kwargs.pop("deciders_only", True)
         require(isinstance(deciders_only, bool), "deciders_only", deciders_only, "True or False")
         self.reward_scale = checked_reward_scale(kwargs.pop("reward_scale", 1.0))
-        arena = tavc_env.parallel_env(**kwargs)
+        arena = make_env(**kwargs)
         self.arena = arena
         self.view: Any = DecidersOnly(arena) if deciders_only else arena
         self.possible_agents = list(arena.possible_agents)

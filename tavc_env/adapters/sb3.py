@@ -21,9 +21,9 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
-import tavc_env
-from tavc_env._validation import is_integer, require
 from tavc_env.adapters import checked_reward_scale
+from tavc_env.arena import make_env
+from tavc_env.validation import is_integer, require
 
 
 class SharedPolicyVecEnv(VecEnv):
@@ -32,7 +32,8 @@ class SharedPolicyVecEnv(VecEnv):
     Args:
         n_envs: copies of the arena stepped in turn.
         reward_scale: rewards are multiplied by it (the env's `w / t` with t in ms is about 0.03).
-        **env_kwargs: arguments of `tavc_env.parallel_env` (`observation_format` is "box").
+        **env_kwargs: env arguments (`tavc_env.arena.make_env`: a `scenario`, or a `preset` or
+            `config` with arena overrides, and env options; `observation_format` is "box").
     """
 
     def __init__(self, n_envs: int = 1, reward_scale: float = 1.0, **env_kwargs: Any) -> None:
@@ -40,9 +41,7 @@ class SharedPolicyVecEnv(VecEnv):
         self.reward_scale = checked_reward_scale(reward_scale)
         fmt = env_kwargs.pop("observation_format", "box")
         require(fmt == "box", "observation_format", fmt, "'box' (SB3's MlpPolicy takes a vector)")
-        self.envs = [
-            tavc_env.parallel_env(observation_format="box", **env_kwargs) for _ in range(n_envs)
-        ]
+        self.envs = [make_env(observation_format="box", **env_kwargs) for _ in range(n_envs)]
         self.robots = list(self.envs[0].possible_agents)
         first = self.robots[0]
         self.render_mode = None

@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 
-from tavc_env._validation import require
 from tavc_env.config import ArenaConfig
 from tavc_env.engine.base import (
     Advance,
@@ -23,6 +22,7 @@ from tavc_env.engine.base import (
 )
 from tavc_env.engine.tasks import Completion, Phase
 from tavc_env.twin.tables import InterferenceTables
+from tavc_env.validation import require
 
 _EPS = 1e-9  # completions within this of an event happen at it (times are sums of floats)
 # the phases the twin uses, as plain ints (an enum member's lookup costs more than a whole step)

@@ -9,13 +9,13 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
-from tavc_env._validation import require
 from tavc_env.engine.simulation import ArenaSnapshot
 from tavc_env.env import ArenaEnv
 from tavc_env.observations import N_PHASES
 from tavc_env.options import resolve_env_args
 from tavc_env.twin.engine import TaskTimeProcess
 from tavc_env.twin.tables import InterferenceTables
+from tavc_env.validation import require
 
 TWIN_ENV_NAME = "tavc_twin_v0"
 

@@ -35,7 +35,6 @@ from typing import Literal
 
 import numpy as np
 
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig, preset_overrides
 from tavc_env.engine.simulation import Simulation
 from tavc_env.measurement import FixedAllocation, FixedRun, run_fixed
@@ -47,6 +46,7 @@ from tavc_env.twin.tables import (
     required_cells,
     team_classes,
 )
+from tavc_env.validation import is_integer, is_number, require
 
 REFERENCE_PRESET = "dahl2004"  # the runs' configurations are this preset with overrides
 

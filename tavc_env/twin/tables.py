@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
+from tavc_env.validation import is_integer, is_number, require
 
 CellKey = tuple[int, tuple[int, ...], str]
 """(circuit, robots of each class on it, the robot's class)"""

@@ -66,6 +66,20 @@ def test_trial_prints_progress_and_a_summary_and_saves(tmp_path: Path) -> None:
     assert again.changes == result.changes and again.delivery_time_s == result.delivery_time_s
 
 
+def test_trial_takes_a_scenario(tmp_path: Path) -> None:
+    path = tmp_path / "s.json"
+    code, out, _ = run(
+        ["trial", "--scenario", "bad_start", "--allocator", "random", *TINY, "--out", str(path)]
+    )
+    assert code == 0 and "random on scenario bad_start" in out
+    result = TrialResult.load(path)
+    assert result.env_kwargs == {"scenario": "bad_start"}
+    assert result.initial_circuits == [1, 1, 1, 0, 1, 1]  # the scenario's bad start
+    # a model-based allocator finds the scenario's reference model
+    code, out, _ = run(["trial", "--scenario", "bad_start", "--allocator", "greedy", *TINY])
+    assert code == 0 and "greedy on scenario bad_start" in out
+
+
 def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) -> None:
     path = tmp_path / "t.json"
     argv = ["trial", "--allocator", "softmax_tavc", "--param", "temperature=0.02"]
@@ -99,7 +113,22 @@ def test_trial_with_parameters_overrides_and_a_team_allocator(tmp_path: Path) ->
         (["trial", "--convergence-h", "nan"], "--convergence-h = nan; allowed: a finite number"),
         (["trial", *TINY, "--out", "/nonexistent/t.json"], "the folder /nonexistent does not"),
         (["trial", *TINY, "--out", "/dev/full"], "/dev/full is a character device"),
-        (["trial", "--set", "wings=2", *TINY], "unknown configuration key(s) ['wings']"),
+        (["trial", "--set", "wings=2", *TINY], "arena overrides = ['wings'] is invalid; allowed:"),
+        (
+            ["trial", "--scenario", "bad_start", "--preset", "dahl2004", *TINY],
+            "arena = {'scenario': 'bad_start', 'preset': 'dahl2004'} is invalid; allowed: one of "
+            "a scenario, a preset or a config",
+        ),
+        (
+            ["trial", "--scenario", "bad_start", "--set", "dt=0.05", *TINY],
+            "scenario 'bad_start' with arena overrides = ['dt'] is invalid; allowed: a scenario "
+            "alone",
+        ),
+        (
+            ["trial", "--scenario", "bad_stat", *TINY],
+            "scenario = 'bad_stat' is invalid; allowed: a scenario (bad_start,",
+        ),
+        (["trial", "--set", "preset=dahl2004", *TINY], "--set preset=dahl2004 is invalid"),
         (
             ["trial", "--allocator", "greedy", "--preset", "dahl2004_homogeneous", *TINY],
             "allocator 'greedy' needs the TAVC model",

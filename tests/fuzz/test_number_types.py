@@ -22,8 +22,8 @@ from hypothesis import event, given
 from hypothesis import strategies as st
 
 import tavc_env
-from tavc_env._validation import plain_number
 from tavc_env.config import ArenaConfig, Breakdown, Circuit, Robot
+from tavc_env.validation import plain_number
 from tests.fuzz.strategies import HOSTILE, fuzz_settings, typed_integer, typed_number
 
 BASE = tavc_env.preset("dahl2004")

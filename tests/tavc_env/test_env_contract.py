@@ -14,6 +14,7 @@ import pytest
 from gymnasium import spaces
 
 import tavc_env
+import tavc_env.v0
 from tavc_env import PHASES, completed_task_s
 from tests.helpers import (
     CONFIGS,
@@ -448,3 +449,26 @@ def test_policy_helpers_are_sane() -> None:
     env = tavc_env.parallel_env()
     run = run_env(env, 5, policy=constant_policy(1), seed=0)
     assert run.steps[0].actions == dict.fromkeys(env.possible_agents, 1)
+
+
+@pytest.mark.parametrize("version", ["v1", "v0"])
+def test_the_env_writes_its_own_infos_after_a_breakdown(version: str) -> None:
+    """`current_infos()` is what the last step returned with a breakdown since written in by the
+    env (in its own version's form), so no caller above the env writes an info."""
+    make = tavc_env.parallel_env if version == "v1" else tavc_env.v0.parallel_env
+    env = make(preset="dahl2004")
+    _, infos = env.reset(seed=4)
+    _, _, _, _, infos = env.step({a: 0 for a in env.agents if infos[a]["action_required"]})
+    assert env.current_infos() == infos
+    env.break_down("robot_2")
+    now = env.current_infos()
+    broken = "broken" if version == "v0" else tavc_env.PHASES.index("broken")
+    assert now["robot_2"] == {
+        **infos["robot_2"],
+        "action_required": False,
+        "broken": True,
+        "phase": broken,
+    }
+    assert {a: i for a, i in now.items() if a != "robot_2"} == {
+        a: i for a, i in infos.items() if a != "robot_2"
+    }

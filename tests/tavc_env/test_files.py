@@ -1,4 +1,4 @@
-"""The safe readers (`tavc_env._files`): only a regular file of a bounded size is read, without
+"""The safe readers (`tavc_env.safe_files`): only a regular file of a bounded size is read, without
 following a link or blocking; anything else, and JSON that is garbled, not finite or holds an
 integer too long to convert, is a `CorruptFileError` (a ValueError) naming the file in one line.
 Every case runs under `no_hang`, so a reader that blocks fails instead of hanging the suite."""
@@ -14,7 +14,7 @@ from unittest import mock
 
 import pytest
 
-from tavc_env._files import CorruptFileError, first_not_finite, read_bytes, read_json, read_text
+from tavc_env.safe_files import CorruptFileError, first_not_finite, read_bytes, read_json, read_text
 from tests.damage import DAMAGES, NOT_FILES, no_hang, plant
 
 GOOD = json.dumps({"a": 1, "b": [0.5, 2]}).encode()
@@ -123,7 +123,7 @@ def test_a_file_growing_past_its_bound_while_read_is_refused(tmp_path: Path) -> 
         return os.stat_result((info.st_mode, 0, 0, 1, 0, 0, 1, 0, 0, 0))
 
     with (
-        mock.patch("tavc_env._files.os.fstat", small),
+        mock.patch("tavc_env.safe_files.os.fstat", small),
         pytest.raises(CorruptFileError, match="grew past the 5 bytes allowed"),
     ):
         read_bytes(path, 5)

@@ -19,8 +19,8 @@ import numpy as np
 
 from tavc_agents.allocators.teams import TeamAllocator
 from tavc_agents.model import CompletionModel, as_model
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.env import completed_task_s
+from tavc_env.validation import is_integer, is_number, require
 
 
 def auction(bids: np.ndarray, places: Sequence[int], epsilon: float) -> list[int]:

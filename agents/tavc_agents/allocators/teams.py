@@ -20,8 +20,8 @@ import numpy as np
 
 from tavc_agents.model import CompletionModel, SpeedClasses, as_model, robot_circuits
 from tavc_agents.policy import Policy, allowed_actions, state_of
-from tavc_env._validation import is_integer, require
 from tavc_env.config import ArenaConfig
+from tavc_env.validation import is_integer, require
 
 
 class TeamAllocator:

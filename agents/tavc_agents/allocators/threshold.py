@@ -18,8 +18,8 @@ import numpy as np
 from tavc_agents.allocators.teams import TeamAllocator
 from tavc_agents.learners.selection import sample
 from tavc_agents.policy import generator
-from tavc_env._validation import is_number, require
 from tavc_env.env import completed_task_s
+from tavc_env.validation import is_number, require
 
 
 class ResponseThresholdAllocator(TeamAllocator):

@@ -21,8 +21,7 @@ import numpy as np
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.stats import bootstrap_ratio_ci, mean_ci, mean_sd, ratio_ci
 from tavc_agents.experiments.files import read_csv
-from tavc_agents.experiments.measurement import FixedRun
-from tavc_env.engine.tasks import Mode
+from tavc_env.measurement import FixedRun, Mode
 
 Row = dict[str, Any]
 Stats = tuple[float, float, float, int]

@@ -19,7 +19,7 @@ import numpy as np
 from tavc_agents.experiments.files import REPORT_MAX_BYTES, read_csv, read_text
 from tavc_agents.experiments.runner import TrialResult
 from tavc_env import metrics
-from tavc_env._validation import require
+from tavc_env.validation import require
 
 CIRCUIT_COLOURS = ["tab:red", "tab:blue", "tab:green", "tab:purple", "tab:orange"]
 CLASS_COLOURS = {"fast": "tab:red", "medium": "tab:green", "slow": "tab:blue"}

@@ -41,11 +41,10 @@ from typing import Literal
 import numpy as np
 
 import tavc_env
-from tavc_agents.analysis.elasticity import Tables, elasticity_of
-from tavc_agents.experiments.elasticity import ALONE, CROWDED
-from tavc_env._validation import is_number, require
+from tavc_agents.analysis.elasticity import ALONE, CROWDED, Tables, elasticity_of
 from tavc_env.config import ArenaConfig
 from tavc_env.twin import InterferenceTables, team_classes
+from tavc_env.validation import is_number, require
 
 KNEE_MIN = 2200.0 / 2000.0
 """t(4) / t(3) above the circuits' value ratio: a fourth robot earns less on the high-value

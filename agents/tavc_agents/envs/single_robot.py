@@ -7,7 +7,7 @@ the learner for it (`w_i / t`, Equation 2). The observation is the paper's: the 
 learner's last circuit. An episode ends (truncated) after `episode_s` simulated seconds.
 
 Vectorised (`gymnasium.make_vec("tavc/dahl2004-v0", n, vectorization_mode="async")`, ids in
-`tavc_agents.envs.registration`), each copy is built in its worker from the id's arguments; the env
+`tavc_env.registration`), each copy is built in its worker from the id's arguments; the env
 also pickles at any point (the arena replays its episode, DESIGN.md section 2.3).
 """
 
@@ -21,11 +21,11 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
-import tavc_env
 from tavc_agents.driver import PolicyDriver
 from tavc_agents.learners.tavc import softmax_tavc
 from tavc_agents.policy import Policy
-from tavc_env._validation import is_integer, is_number, require
+from tavc_env.arena import resolve_env_kwargs
+from tavc_env.validation import is_integer, is_number, require
 
 
 def softmax_tavc_others(agent: str) -> Policy:
@@ -53,10 +53,9 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
         scenario: str | None = None,
         **env_kwargs: Any,
     ) -> None:
-        if scenario is not None:
-            chosen = tavc_env.scenarios.scenario_named(scenario)
-            episode_s = chosen.episode_s if episode_s is None else episode_s
-        episode_s = 4 * 3600.0 if episode_s is None else episode_s
+        arena, options = resolve_env_kwargs({"scenario": scenario, **env_kwargs})
+        if episode_s is None:
+            episode_s = 4 * 3600.0 if arena.scenario is None else arena.scenario.episode_s
         require(is_number(episode_s) and episode_s > 0, "episode_s", episode_s, "a duration > 0 s")
         require(
             "max_sim_time_s" not in env_kwargs,
@@ -70,13 +69,7 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
             others,
             "None (softmax TAVC) or a function from an agent name to its Policy",
         )
-        self.env = (
-            tavc_env.parallel_env(max_sim_time_s=float(episode_s), **env_kwargs)
-            if scenario is None
-            else tavc_env.scenarios.parallel_env(
-                scenario, max_sim_time_s=float(episode_s), **env_kwargs
-            )
-        )
+        self.env = arena.parallel_env(max_sim_time_s=float(episode_s), **options)
         require(robot in self.env.possible_agents, "robot", robot, str(self.env.possible_agents))
         self.robot = robot
         self.others = others if others is not None else softmax_tavc_others

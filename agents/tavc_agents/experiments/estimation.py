@@ -14,7 +14,7 @@ from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TrialSpec, run_sweep
 from tavc_agents.model import CompletionModel, Group, SpeedClasses, model_from_runs
 from tavc_env import ArenaConfig, make_config
-from tavc_env._validation import require
+from tavc_env.validation import require
 
 
 def group_specs(

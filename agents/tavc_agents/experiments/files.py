@@ -10,7 +10,7 @@ Stored records carry a schema version and a SHA-256 checksum of their content, c
 (older records without one must be listed in a `CHECKSUMS.sha256` manifest beside them): a
 truncated, garbled, too deeply nested or hand-edited file is reported in one line naming the file
 and what is wrong (`CorruptFileError`), never used silently. Records are read through the safe
-readers of `tavc_env._files` (re-exported here): only a regular file of a bounded size, opened
+readers of `tavc_env.safe_files` (re-exported here): only a regular file of a bounded size, opened
 without following a link or blocking, whose numbers are all finite; the checksums protect against
 accidental damage, not a deliberate edit (anyone can recompute one).
 """
@@ -27,7 +27,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from tavc_env._files import (
+from tavc_env.safe_files import (
     MIB,
     CorruptFileError,
     atomic_path,

@@ -9,7 +9,7 @@ import dataclasses
 import importlib.util
 import math
 
-from tavc_env._validation import is_integer, is_number
+from tavc_env.validation import is_integer, is_number
 
 MAX_SEED = 2**63 - 1
 """The largest seed: a signed 64-bit integer, what every library a trial may hand a seed to holds."""

@@ -58,7 +58,7 @@ from tavc_agents.experiments.files import (
 )
 from tavc_agents.experiments.folders import hold_folder
 from tavc_agents.experiments.runner import TrialResult
-from tavc_env._files import kind_of, parse_json, sync_folder
+from tavc_env.safe_files import kind_of, parse_json, sync_folder
 
 PACK = "pack.jsonl"
 PACK_MAX_BYTES = 1024 * MIB  # the largest committed pack is about 6 MiB

@@ -124,7 +124,7 @@ def run_metadata(**extra: Any) -> dict[str, Any]:
 def load_provenance(folder: str | Path) -> dict[str, Any] | None:
     """The provenance saved in `folder`, or None if there is none; a `CorruptFileError` naming
     the file, in one line, if it is not a regular file holding a JSON object (read safely:
-    `tavc_env._files`)."""
+    `tavc_env.safe_files`)."""
     path = Path(folder) / PROVENANCE_FILE
     if not os.path.lexists(path):
         return None

@@ -24,11 +24,9 @@ import tavc_env
 from tavc_agents.driver import PolicyDriver
 from tavc_agents.experiments.files import CorruptFileError, read_record, write_record
 from tavc_agents.policy import Policy, Team
-from tavc_env._validation import is_integer, is_number, require
-from tavc_env.config import ARENA_KEYS
-from tavc_env.engine.tasks import Phase
+from tavc_env.arena import Arena, ArenaSpec, resolve_env_kwargs
 from tavc_env.env import completed_task_s
-from tavc_env.options import split_env_kwargs
+from tavc_env.validation import is_integer, is_number, require
 
 PolicyFactory = Callable[[str], Policy]
 EVENT_KINDS = ("break_down", "repair", "set_values")
@@ -160,7 +158,7 @@ class TrialResult:
     learner_stats: dict[str, dict[str, Any]] = field(default_factory=dict)
     capped_steps: int = 0
     escapes: int = 0  # stuck robots' escape manoeuvres (navigation.STUCK_PATIENCE_S)
-    jams: int = 0  # jams the engine's detector found (see tavc_env.engine.simulation)
+    jams: int = 0  # jams the env's detector found (`TavcArenaEnv.jams`)
     jammed_s: float = 0.0  # simulated time spent jammed
     steps: int = 0
     wall_s: float = 0.0
@@ -214,15 +212,15 @@ def _factory_name(factory: Callable[..., Any]) -> str:
 
 
 def env_arguments(env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
-    """A plain mapping of env arguments (a `scenario`, or a `preset` or `config` and arena overrides; env options,
-    mixed, as a sweep's `TrialSpec.env_kwargs` holds them) as `run_trial`'s keyword arguments
-    `preset`, `config`, `arena` and `options`; any other key is a ValueError naming it."""
-    rest = dict(env_kwargs)
-    out: dict[str, Any] = {k: rest.pop(k) for k in ("scenario", "preset", "config") if k in rest}
-    arena, options = split_env_kwargs(rest)
-    out["arena"] = arena
-    if options:
-        out["options"] = tavc_env.EnvOptions(**options)
+    """A plain mapping of env arguments (a `scenario`, or a `preset` or `config` and arena
+    overrides; env options, mixed, as a sweep's `TrialSpec.env_kwargs` holds them) as `run_trial`'s
+    keyword arguments `arena` (resolved by `tavc_env.resolve_arena`, which names any clash) and
+    `options`; any other key is a ValueError naming it."""
+    arena, option_kwargs = resolve_env_kwargs(env_kwargs)
+    out: dict[str, Any] = {"arena": arena}
+    base = option_kwargs.pop("options", None)
+    if base is not None or option_kwargs:
+        out["options"] = (base or tavc_env.EnvOptions()).replace(**option_kwargs)
     return out
 
 
@@ -247,12 +245,9 @@ def run_trial(
     progress: Callable[[float], None] | None = None,
     events: Sequence[Event] = (),
     on_step: Callable[[Any], None] | None = None,
-    env_factory: Callable[..., Any] | None = None,
-    preset: str | None = None,
-    config: tavc_env.ArenaConfig | None = None,
-    arena: Mapping[str, Any] | None = None,
+    arena: ArenaSpec | Arena = None,
     options: tavc_env.EnvOptions | None = None,
-    scenario: str | None = None,
+    env_factory: Callable[..., Any] | None = None,
 ) -> TrialResult:
     """Run one trial and return what it recorded.
 
@@ -262,20 +257,19 @@ def run_trial(
     given, is called with the env after every step (e.g. to render frames). `progress`, if given,
     is called with the simulated time after each step.
 
-    The arena is `preset` (None: `dahl2004`) or `config` (not both), with `arena`'s overrides
-    (fields of `tavc_env.ArenaConfig` and the shorthands `speeds`, `values`); the env's
-    `options` (`tavc_env.EnvOptions`) are the defaults unless given, except that the trial sets
-    `max_sim_time_s` from the two periods (and lifts `max_cycles`): `options` must leave those two
-    at their defaults. `env_arguments` turns a plain mapping of all of these (as a sweep's
-    `TrialSpec.env_kwargs` holds them) into these arguments.
+    `arena` says which arena, as `tavc_env.resolve_arena` takes it (the one place that resolves
+    it and refuses clashes): a scenario (`"bad_start"`, `"tavc/bad_start-v0"` or a
+    `tavc_env.Scenario`: its arena and its priority shifts), a preset name or an `ArenaConfig`, a
+    plain mapping (`{"preset": "dahl2004", "dt": 0.05}`; overrides alone change `dahl2004`), or
+    None (`dahl2004`). The env's `options` (`tavc_env.EnvOptions`) are the defaults unless given,
+    except that the trial sets `max_sim_time_s` from the two periods (and lifts `max_cycles`):
+    `options` must leave those two at their defaults. `env_arguments` turns a plain mapping of all
+    of these (as a sweep's `TrialSpec.env_kwargs` holds them) into these arguments.
 
-    `scenario` (a name in `tavc_env.scenarios.SCENARIOS`) runs the trial in that scenario: its
-    arena and its priority shifts (not with `preset`, `config`, `arena` or `env_factory`).
-
-    `env_factory` (None: `tavc_env.parallel_env`) builds the env instead, from the same keyword
-    arguments: e.g. `functools.partial(tavc_env.twin_parallel_env, tables=tables)` runs the trial
-    on the model twin (`tavc_env.twin`). A trial run on another factory records its name in
-    `env_kwargs["env_factory"]`, so its result cannot pass for a physics trial.
+    `env_factory` (None: the arena's own env) builds the env instead, from `config=` and
+    `options=`: e.g. `functools.partial(tavc_env.twin_parallel_env, tables=tables)` runs the trial
+    on the model twin (`tavc_env.twin`; not for a scenario). A trial run on another factory records
+    its name in `env_kwargs["env_factory"]`, so its result cannot pass for a physics trial.
     """
     for name, value in (("convergence_s", convergence_s), ("measured_s", measured_s)):
         require(is_number(value) and value >= 0, name, value, "a finite duration >= 0 s")
@@ -304,19 +298,6 @@ def run_trial(
         options,
         "a tavc_env.EnvOptions or None",
     )
-    require(
-        arena is None or isinstance(arena, Mapping),
-        "arena",
-        arena,
-        "None or a mapping of arena overrides (fields of tavc_env.ArenaConfig, speeds, values)",
-    )
-    not_arena = sorted(str(k) for k in arena or {} if k not in ARENA_KEYS)
-    require(
-        not not_arena,
-        "arena",
-        not_arena,
-        f"overrides of the arena: {sorted(ARENA_KEYS)} (env options go in options=EnvOptions(...))",
-    )
     chosen = options if options is not None else tavc_env.EnvOptions()
     reserved = sorted({"max_sim_time_s", "max_cycles"} & set(chosen.changed()))
     require(
@@ -329,30 +310,13 @@ def run_trial(
         env_factory is None or callable(env_factory),
         "env_factory",
         env_factory,
-        "None (tavc_env.parallel_env) or a callable taking parallel_env's keyword arguments",
+        "None (the arena's own env) or a callable taking config= and options=",
     )
-    make_env = tavc_env.parallel_env if env_factory is None else env_factory
+    resolved = tavc_env.resolve_arena(arena)
+    factory = None if env_factory is tavc_env.parallel_env else env_factory
     total = float(convergence_s + measured_s)
-    overrides = dict(arena or {})
-    arena_kwargs: dict[str, Any] = {} if preset is None else {"preset": preset}
-    if config is not None:
-        arena_kwargs["config"] = config
-    if scenario is not None:
-        given = {"preset": preset, "config": config, "arena": arena, "env_factory": env_factory}
-        clash = sorted(k for k, v in given.items() if v)
-        require(
-            not clash,
-            "scenario",
-            scenario,
-            f"a scenario alone (it fixes the arena; got also {clash})",
-        )
-        tavc_env.scenarios.scenario_named(scenario)  # a clear error before anything runs
-        make_env = tavc_env.scenarios.parallel_env
-        arena_kwargs = {"scenario": scenario}
-    env = make_env(
-        options=chosen.replace(max_sim_time_s=total, max_cycles=10**9),
-        **arena_kwargs,
-        **overrides,
+    env = resolved.parallel_env(
+        chosen.replace(max_sim_time_s=total, max_cycles=10**9), factory=factory
     )
     agents = list(env.possible_agents)
     events = check_events(events, env.config, total)
@@ -379,9 +343,9 @@ def run_trial(
 
     cfg = env.config
     # what the caller chose, as a sweep's TrialSpec.env_kwargs would hold it
-    recorded = _jsonable({**arena_kwargs, **overrides, **chosen.changed()})
-    if make_env not in (tavc_env.parallel_env, tavc_env.scenarios.parallel_env):
-        recorded["env_factory"] = _factory_name(make_env)
+    recorded = _jsonable({**resolved.kwargs, **chosen.changed()})
+    if factory is not None:
+        recorded["env_factory"] = _factory_name(factory)
     result = TrialResult(
         seed=seed,
         label=label,
@@ -451,8 +415,8 @@ def run_trial(
 def _apply(
     env: Any, event: Event, infos: dict[str, dict[str, Any]], result: TrialResult, now: float
 ) -> dict[str, dict[str, Any]]:
-    """Apply `event` to `env`; return the infos as they now stand (a robot that breaks down no
-    longer has to decide)."""
+    """Apply `event` to `env`; return the infos as they now stand (the env's own: a robot that
+    breaks down no longer has to decide)."""
     if event.kind == "set_values":
         env.set_circuit_values(event.values)
         result.events.append((now, event.kind, list(event.values or ())))
@@ -461,8 +425,7 @@ def _apply(
     agent = env.possible_agents[event.robot]
     if event.kind == "break_down":
         env.break_down(agent)
-        infos = {**infos, agent: {**infos[agent], "action_required": False, "broken": True}}
-        infos[agent]["phase"] = int(Phase.BROKEN)
+        infos = env.current_infos()  # the env writes its own infos: this robot no longer decides
     else:
         env.repair(agent)
     result.events.append((now, event.kind, event.robot))

@@ -19,7 +19,6 @@ import csv
 import dataclasses
 import datetime as _dt
 import itertools
-import json
 import sys
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,6 +28,7 @@ from typing import Annotated, Any, ClassVar, Literal, TypeVar
 
 import tyro
 
+from tavc_agents.experiments.command_line import parse_key_values
 from tavc_agents.experiments.files import REPORT_MAX_BYTES, atomic_path, read_report, read_text
 from tavc_agents.experiments.folders import FolderError, check_out_folder, hold_folder
 from tavc_agents.experiments.limits import check_settings
@@ -36,7 +36,7 @@ from tavc_agents.experiments.packs import pack_new
 from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.sweep import TRIALS, JobKind, SaveError, TrialSpec
-from tavc_env._validation import is_integer, is_number
+from tavc_env.validation import is_integer, is_number
 
 RESULTS_DIR = (CHECKOUT or Path()) / "benchmarks" / "results"
 """The committed reference results of the source checkout (changed only with `--update-reference`).
@@ -420,22 +420,6 @@ def choices(settings: object, name: str, known: Collection[str]) -> list[str]:
             f"{name} = {text!r} is invalid; allowed: a comma-separated subset of {', '.join(known)}"
         )
     return chosen
-
-
-def parse_key_values(items: Sequence[str], option: str, example: str) -> dict[str, Any]:
-    """`KEY=VALUE` items (as given to `option`) as a dict: values that parse as JSON (numbers,
-    true/false, lists) are used as such, anything else as a string; whoever receives them then
-    names any key or value it does not accept. A ValueError shows `example` for a malformed one."""
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"{option} {item!r} is invalid; allowed: KEY=VALUE, e.g. {example}")
-        try:
-            out[key] = json.loads(text)
-        except json.JSONDecodeError:
-            out[key] = text
-    return out
 
 
 def arena_overrides(items: Sequence[str]) -> dict[str, Any]:

@@ -73,6 +73,10 @@ class TrialSpec:
     `tags` say what the trial stands for in its study (condition, arena, temperature, seed, ...):
     reports group trials by them. A study derives `key` from its tags; nothing parses a key back.
     Tags are labels, not settings: a saved trial resumes whatever its tags.
+
+    `env_kwargs` say which arena and how the env presents it, as plain data: `{"scenario": name}`,
+    or a `preset` (or `config`) with arena overrides, and env options; `tavc_env.resolve_arena`
+    resolves the arena (the one place that refuses a clash).
     """
 
     key: str
@@ -138,20 +142,13 @@ def spec_record(spec: TrialSpec) -> dict[str, Any]:
 def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
     """A short digest of the arena configuration that `env_kwargs` resolve to (the env's own
     options, such as time limits, are not part of the arena)."""
-    from tavc_env import make_config
-    from tavc_env.options import split_env_kwargs
-    from tavc_env.scenarios import scenario_named
+    from tavc_env.arena import resolve_env_kwargs
 
-    arena = dict(env_kwargs)
-    if "scenario" in arena:  # its arena, and its priority shifts if it has any
-        chosen = scenario_named(arena["scenario"])
-        text = digest_text(chosen.config())
-        if chosen.value_shifts is not None:
-            text += repr(chosen.value_shifts)
-        return hashlib.sha256(text.encode()).hexdigest()[:16]
-    preset, given = arena.pop("preset", None), arena.pop("config", None)
-    config = make_config(preset, given, **split_env_kwargs(arena)[0])
-    return hashlib.sha256(digest_text(config).encode()).hexdigest()[:16]
+    arena = resolve_env_kwargs(env_kwargs)[0]  # a scenario: its arena, and its priority shifts
+    text = digest_text(arena.config)
+    if arena.scenario is not None and arena.scenario.value_shifts is not None:
+        text += repr(arena.scenario.value_shifts)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 # The fields ArenaConfig had when trial records began to carry digests (November 2026). Frozen:

@@ -37,9 +37,9 @@ from typing import Literal
 import numpy as np
 
 from tavc_agents.learners.tavc import TavcParams
-from tavc_env._validation import is_integer, is_number, require
 from tavc_env.config import ArenaConfig
 from tavc_env.twin import InterferenceTables, team_classes
+from tavc_env.validation import is_integer, is_number, require
 
 REWARD_UNIT = 1000.0  # the env's default reward time unit: t in ms
 

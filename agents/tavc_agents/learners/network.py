@@ -26,9 +26,9 @@ from typing import IO, Any
 import numpy as np
 
 from tavc_agents.policy import NonLearning, Policy, allowed_actions
-from tavc_env._files import atomic_path
-from tavc_env._validation import require
 from tavc_env.config import ArenaConfig
+from tavc_env.safe_files import atomic_path
+from tavc_env.validation import require
 
 
 def _relu(x: np.ndarray) -> np.ndarray:

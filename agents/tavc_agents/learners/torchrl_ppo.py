@@ -26,7 +26,7 @@ from torchrl.modules import MaskedCategorical, MultiAgentMLP, ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss, ValueEstimators
 
 from tavc_agents.learners.network import Mlp
-from tavc_env._validation import require
+from tavc_env.validation import require
 
 GROUP = "robot"  # TorchRL's default group of robot_0 .. robot_{n-1}
 OBS = (GROUP, "observation", "observation")  # the Dict's vector; its mask is (GROUP, "action_mask")

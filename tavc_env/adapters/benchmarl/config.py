@@ -14,13 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tavc_env import scenarios
-from tavc_env._files import MIB, CorruptFileError, first_not_finite, read_text
-from tavc_env._validation import is_integer, require
 from tavc_env.adapters import checked_reward_scale
-from tavc_env.env import ArenaEnv, parallel_env
-from tavc_env.options import EnvOptions, resolve_env_args
-from tavc_env.scenarios import scenario_named
+from tavc_env.arena import make_env as arena_env
+from tavc_env.arena import resolve_env_kwargs
+from tavc_env.env import ArenaEnv
+from tavc_env.safe_files import MIB, CorruptFileError, first_not_finite, read_text
+from tavc_env.validation import is_integer, require
 
 ENV_NAME = "tavc"
 # The root of the shipped configuration, laid out as BenchMARL's own `conf` folder so that Hydra
@@ -74,23 +73,16 @@ class TavcTaskConfig:
         kwargs = {k: v for k, v in config.items() if k not in TASK_KEYS and k not in HYDRA_KEYS}
         kwargs["max_cycles"] = int(steps)
         try:
-            if "scenario" in kwargs:  # a scenario of the suite, with env options only
-                scenario_named(kwargs["scenario"])
-                EnvOptions(**{k: v for k, v in kwargs.items() if k != "scenario"})
-            else:
-                resolve_env_args(**kwargs)  # the arena and options, checked as parallel_env does
+            resolve_env_kwargs(kwargs)  # which arena and the options, checked (tavc_env.arena)
         except (TypeError, ValueError) as error:
             raise ValueError(f"{where}: {error}") from None
         return cls(int(steps), scale, types.MappingProxyType(kwargs))
 
 
 def make_env(env_kwargs: Mapping[str, Any]) -> ArenaEnv[Any]:
-    """The env a task's `env_kwargs` describe: a scenario's (`scenario: <name>`, then env options
-    only), or `tavc_env.parallel_env`'s (a preset, arena overrides, env options)."""
-    kwargs = dict(env_kwargs)
-    if "scenario" in kwargs:
-        return scenarios.parallel_env(kwargs.pop("scenario"), **kwargs)
-    return parallel_env(**kwargs)
+    """The env a task's `env_kwargs` describe (`tavc_env.arena.make_env`): a scenario's
+    (`scenario: <name>`, then env options only), or a preset's (arena overrides, env options)."""
+    return arena_env(**env_kwargs)
 
 
 def load_task_config(name: str, path: str | Path | None = None) -> dict[str, Any]:

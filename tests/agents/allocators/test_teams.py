@@ -655,7 +655,7 @@ EVENTS = (
 
 def trial(team: Team, seed: int = 0, events: Sequence[Event] = EVENTS) -> TrialResult:
     return run_trial(
-        team, seed=seed, convergence_s=0.0, measured_s=600.0, events=events, preset="dahl2004"
+        team, seed=seed, convergence_s=0.0, measured_s=600.0, events=events, arena="dahl2004"
     )
 
 
@@ -702,7 +702,7 @@ def test_greedy_team_refills_a_vacancy_after_a_breakdown() -> None:
             convergence_s=0.0,
             measured_s=1200.0,
             events=events,
-            preset="dahl2004",
+            arena="dahl2004",
         )
 
     calm = run(())

@@ -18,7 +18,6 @@ import tavc_env
 from arena_runs import elasticity_jobs, measure_elasticity
 from tavc_agents.analysis import elasticity as ea
 from tavc_agents.analysis import interference as ia
-from tavc_agents.experiments import elasticity as ee
 from tavc_env.config import lane_circuits
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -54,7 +53,7 @@ def _slow_lose_more(cls: str, f: int, s: int) -> float:
 def _expected(time: Time) -> float:
     def mean_log(cls: str, alone: tuple[int, int]) -> float:
         return float(
-            np.mean([math.log(time(cls, f, s) / time(cls, *alone)) for f, s in ee.CROWDED])
+            np.mean([math.log(time(cls, f, s) / time(cls, *alone)) for f, s in ea.CROWDED])
         )
 
     return mean_log("fast", (1, 0)) / mean_log("slow", (0, 1))
@@ -266,8 +265,8 @@ def test_cross_runs_of_the_dahl2004_presets_are_the_studys_own() -> None:
         ("dahl2004_competence", (("service_scales_with_speed", True),)),
         ("dahl2004_light_stations", (("sink_service_s", 2.0), ("source_service_s", 6.0))),
     ):
-        for f, s in ee.CELLS:
-            alloc = ee.cross_allocation(
+        for f, s in ea.CELLS:
+            alloc = ea.cross_allocation(
                 tavc_env.preset(preset), f, s, seed=1, hours=3.0, warmup_s=600.0, skip_first=2
             )
             assert alloc.arena == overrides
@@ -286,20 +285,20 @@ def test_cross_runs_of_the_dahl2004_presets_are_the_studys_own() -> None:
 
 def test_cross_runs_in_other_arenas() -> None:
     three = tavc_env.preset("three_circuits_three_classes")  # nine robots, three circuits
-    alloc = ee.cross_allocation(three, 2, 1, seed=0, hours=1.0, warmup_s=0.0, skip_first=0)
+    alloc = ea.cross_allocation(three, 2, 1, seed=0, hours=1.0, warmup_s=0.0, skip_first=0)
     config = alloc.config()
-    assert config.robots == (ee.FAST,) * 3 + (ee.SLOW,) * 3
+    assert config.robots == (ea.FAST,) * 3 + (ea.SLOW,) * 3
     assert config.circuits == three.circuits and config.width == three.width
     one = tavc_env.make_config(circuits=lane_circuits(1, values=(1000.0,)))
-    alloc = ee.cross_allocation(one, 2, 1, seed=0, hours=1.0, warmup_s=0.0, skip_first=0)
+    alloc = ea.cross_allocation(one, 2, 1, seed=0, hours=1.0, warmup_s=0.0, skip_first=0)
     assert alloc.circuit_of == (0, 0, 0)
-    assert alloc.config().robots == (ee.FAST, ee.FAST, ee.SLOW)
+    assert alloc.config().robots == (ea.FAST, ea.FAST, ea.SLOW)
     with pytest.raises(ValueError, match=r"^fast = 4 is invalid"):
-        ee.cross_allocation(one, 4, 1, seed=0, hours=1.0, warmup_s=0.0, skip_first=0)
+        ea.cross_allocation(one, 4, 1, seed=0, hours=1.0, warmup_s=0.0, skip_first=0)
     with pytest.raises(ValueError, match=r"^fast = slow = 0 is invalid"):
-        ee.cross_circuits(0, 0, 2)
+        ea.cross_circuits(0, 0, 2)
     with pytest.raises(ValueError, match=r"^config = .* is invalid"):
-        ee.cross_arena("dahl2004", 1, 1)  # type: ignore[arg-type]
+        ea.cross_arena("dahl2004", 1, 1)  # type: ignore[arg-type]
 
 
 def test_the_study_takes_a_preset() -> None:
@@ -327,7 +326,7 @@ def test_measure_elasticity_runs_the_cells_and_resumes(tmp_path: Path) -> None:
     el = measure_elasticity(config, seeds=[0, 1], out=tmp_path, **kwargs)
     assert el.n_seeds == 2 and math.isfinite(el.e) and el.e > 0
     assert el.low <= el.e <= el.high
-    assert len(list(tmp_path.glob("cross_*.json"))) == 2 * len(ee.CELLS) == 22
+    assert len(list(tmp_path.glob("cross_*.json"))) == 2 * len(ea.CELLS) == 22
     again = measure_elasticity(config, seeds=[0, 1], out=tmp_path, **kwargs)  # all resumed
     assert again == el
     with pytest.raises(ValueError, match=r"^seeds = "):

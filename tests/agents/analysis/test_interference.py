@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from tavc_agents.analysis import interference as ia
-from tavc_agents.experiments.measurement import CountedTask, FixedAllocation, FixedRun
-from tavc_env.engine.tasks import Mode
+from tavc_env.measurement import CountedTask, FixedAllocation, FixedRun, Mode
 
 
 def _run(

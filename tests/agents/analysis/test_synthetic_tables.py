@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import tavc_env
-from tavc_agents.analysis.elasticity import Tables, elasticity_of
+from tavc_agents.analysis.elasticity import ALONE, CROWDED, Tables, elasticity_of
 from tavc_agents.analysis.synthetic_tables import (
     KNEE_MIN,
     Family,
@@ -17,7 +17,6 @@ from tavc_agents.analysis.synthetic_tables import (
     reach,
     with_elasticity,
 )
-from tavc_agents.experiments.elasticity import ALONE, CROWDED
 
 
 def test_pure_multiplicative_crowding_has_unit_elasticity() -> None:

@@ -14,9 +14,12 @@ from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode
 from gymnasium.wrappers.vector import RecordEpisodeStatistics
 
-from tavc_agents.envs import SINGLE_ROBOT_IDS, register_single_robot_envs
-from tavc_agents.envs.registration import SINGLE_ROBOT_ENTRY_POINT
 from tavc_agents.envs.single_robot import SingleRobotEnv
+from tavc_env.registration import (
+    SINGLE_ROBOT_ENTRY_POINT,
+    SINGLE_ROBOT_IDS,
+    register_single_robot_envs,
+)
 
 GYM_ID = "tavc/dahl2004-v0"
 SHORT_S = 600.0  # an episode of about 7 learner steps

@@ -61,7 +61,7 @@ def test_set_values_with_the_wrong_number_of_values(values: tuple[float, ...]) -
 
 def test_set_values_counted_against_the_arena_of_the_trial() -> None:
     three = Event(30.0, "set_values", values=(1.0, 2.0, 3.0))
-    stepped = run([three], preset="three_circuits_three_classes")
+    stepped = run([three], arena="three_circuits_three_classes")
     assert stepped[-1] == pytest.approx(120.0)
 
 

@@ -9,17 +9,17 @@ import numpy as np
 import pytest
 
 import tavc_env
-from tavc_agents.experiments.measurement import (
+from tavc_agents.experiments.timing import random_choice_run
+from tavc_env.engine.simulation import Simulation
+from tavc_env.measurement import (
     FixedAllocation,
+    Mode,
     ModeTicks,
     SpacingMonitor,
     physics_floor,
-    random_choice_run,
     run_fixed,
     two_circuit_allocation,
 )
-from tavc_env.engine.simulation import Simulation
-from tavc_env.engine.tasks import Mode
 
 DURATION_S = 900.0
 

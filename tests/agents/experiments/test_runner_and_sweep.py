@@ -37,7 +37,7 @@ def comparable(result: TrialResult) -> dict[str, Any]:
 def softmax_hour() -> tuple[TrialResult, dict[str, TavcLearner]]:
     """One simulated hour of softmax TAVC on dahl2004 (seed 0), with the learners kept."""
     learners = {a: softmax_tavc() for a in AGENTS}
-    result = run_trial(learners, seed=0, preset="dahl2004", label="softmax", **HOUR)
+    result = run_trial(learners, seed=0, arena="dahl2004", label="softmax", **HOUR)
     return result, learners
 
 
@@ -47,11 +47,11 @@ def softmax_hour() -> tuple[TrialResult, dict[str, TavcLearner]]:
 def test_same_seed_same_result_different_seed_different(softmax_hour) -> None:
     first, _ = softmax_hour
     again = run_trial(
-        lambda agent: softmax_tavc(), seed=0, preset="dahl2004", label="softmax", **HOUR
+        lambda agent: softmax_tavc(), seed=0, arena="dahl2004", label="softmax", **HOUR
     )
     assert comparable(again) == comparable(first)
     other = run_trial(
-        lambda agent: softmax_tavc(), seed=1, preset="dahl2004", label="softmax", **HOUR
+        lambda agent: softmax_tavc(), seed=1, arena="dahl2004", label="softmax", **HOUR
     )
     assert other.changes != first.changes
     assert other.delivery_time_s != first.delivery_time_s
@@ -150,7 +150,7 @@ def test_q_snapshots_follow_the_period() -> None:
     result = run_trial(
         lambda agent: softmax_tavc(),
         seed=3,
-        preset="dahl2004",
+        arena="dahl2004",
         convergence_s=1200.0,
         measured_s=600.0,
         snapshot_every_s=600.0,
@@ -184,7 +184,7 @@ def test_learner_stats_match_the_learners(softmax_hour) -> None:
 
 def test_no_learner_stats_or_snapshots_for_random() -> None:
     result = run_trial(
-        lambda agent: RandomAllocator(), seed=0, preset="dahl2004", convergence_s=0, measured_s=600
+        lambda agent: RandomAllocator(), seed=0, arena="dahl2004", convergence_s=0, measured_s=600
     )
     assert result.learner_stats == {}
     assert result.q_snapshots == []
@@ -225,7 +225,7 @@ def assert_onehot(x: np.ndarray) -> None:
 @pytest.fixture(scope="module")
 def spied() -> tuple[TrialResult, dict[str, SpyPolicy]]:
     spies = {a: SpyPolicy() for a in AGENTS}
-    result = run_trial(spies, seed=5, preset="dahl2004", **HOUR)
+    result = run_trial(spies, seed=5, arena="dahl2004", **HOUR)
     return result, spies
 
 
@@ -306,7 +306,7 @@ def test_missing_policies_raise_naming_the_agents() -> None:
     with pytest.raises(
         ValueError, match=r"policies missing for \['robot_3', 'robot_4', 'robot_5'\]"
     ):
-        run_trial(partial, seed=0, preset="dahl2004", convergence_s=0, measured_s=60)
+        run_trial(partial, seed=0, arena="dahl2004", convergence_s=0, measured_s=60)
 
 
 @pytest.mark.parametrize(
@@ -323,7 +323,7 @@ def test_missing_policies_raise_naming_the_agents() -> None:
 )
 def test_bad_periods_raise(field: str, kwargs: dict[str, Any]) -> None:
     with pytest.raises(ValueError, match=field):
-        run_trial(lambda agent: RandomAllocator(), seed=0, preset="dahl2004", **kwargs)
+        run_trial(lambda agent: RandomAllocator(), seed=0, arena="dahl2004", **kwargs)
 
 
 # -- the trial's arena and options: explicit arguments ----------------------------------------
@@ -338,13 +338,34 @@ def test_a_misspelt_argument_is_an_unknown_run_trial_argument() -> None:
 @pytest.mark.parametrize(
     ("kwargs", "pattern"),
     [
-        ({"arena": {"decision_interval_s": 5.0}}, r"^arena = \['decision_interval_s'\] is invalid"),
-        ({"arena": {"sourse_service_s": 5.0}}, r"^arena = \['sourse_service_s'\] is invalid"),
+        (
+            {"arena": {"decision_interval_s": 5.0}},
+            r"^arena overrides = \['decision_interval_s'\] is invalid",
+        ),
+        (
+            {"arena": {"sourse_service_s": 5.0}},
+            r"^arena overrides = \['sourse_service_s'\] is invalid",
+        ),
         ({"options": tavc_env.EnvOptions(max_cycles=5)}, r"^options = \['max_cycles'\] is invalid"),
         ({"options": {"step_cap_s": 60.0}}, r"^options = .* allowed: a tavc_env\.EnvOptions"),
         (
-            {"preset": "dahl2004", "config": tavc_env.preset("dahl2004")},
-            r"^preset = 'dahl2004' is invalid; allowed: None when a config is given",
+            {"arena": {"preset": "dahl2004", "config": tavc_env.preset("dahl2004")}},
+            r"^arena = \{'preset': 'dahl2004', 'config': .*\} is invalid; allowed: one of a "
+            r"scenario, a preset or a config",
+        ),
+        (
+            {"arena": {"scenario": "bad_start", "preset": "dahl2004"}},
+            r"^arena = \{'scenario': 'bad_start', 'preset': 'dahl2004'\} is invalid",
+        ),
+        (
+            {"arena": {"scenario": "bad_start", "dt": 0.05}},
+            r"^scenario 'bad_start' with arena overrides = \['dt'\] is invalid; allowed: a "
+            r"scenario alone",
+        ),
+        ({"arena": "bad_stat"}, r"^arena = 'bad_stat' is invalid; allowed: a preset \(dahl2004, "),
+        (
+            {"arena": "bad_start", "env_factory": lambda **kwargs: None},
+            r"^env factory = .* is invalid; allowed: None for scenario 'bad_start'",
         ),
     ],
 )
@@ -355,6 +376,33 @@ def test_the_arena_and_options_are_checked_before_the_trial(
         run_trial(lambda agent: RandomAllocator(), seed=0, progress=_guard, **HOUR, **kwargs)
 
 
+@pytest.mark.parametrize("spec", ["bad_start", "tavc/bad_start-v0", {"scenario": "bad_start"}])
+def test_a_trial_takes_a_scenario_through_the_one_door(spec: Any) -> None:
+    seen: list[Any] = []
+    result = run_trial(
+        lambda agent: RandomAllocator(),
+        seed=0,
+        convergence_s=0.0,
+        measured_s=300.0,
+        arena=spec,
+        on_step=seen.append,
+    )
+    assert isinstance(seen[0], tavc_env.ScenarioEnv) and seen[0].scenario.name == "bad_start"
+    assert result.initial_circuits == [1, 1, 1, 0, 1, 1]
+    assert result.env_kwargs == {"scenario": "bad_start"}
+    by_spec = run_spec(
+        TrialSpec(
+            key="k",
+            allocator="random",
+            seed=0,
+            env_kwargs={"scenario": "bad_start"},
+            convergence_s=0.0,
+            measured_s=300.0,
+        )
+    )
+    assert by_spec.delivery_time_s == result.delivery_time_s
+
+
 def test_arena_and_options_reach_the_env_and_the_record() -> None:
     seen: list[Any] = []
     options = tavc_env.EnvOptions(decision_interval_s=30.0, reward_time_unit="s")
@@ -363,8 +411,7 @@ def test_arena_and_options_reach_the_env_and_the_record() -> None:
         seed=0,
         convergence_s=0.0,
         measured_s=120.0,
-        preset="dahl2004_homogeneous",
-        arena={"source_service_s": 5.0},
+        arena={"preset": "dahl2004_homogeneous", "source_service_s": 5.0},
         options=options,
         on_step=seen.append,
     )
@@ -380,8 +427,7 @@ def test_arena_and_options_reach_the_env_and_the_record() -> None:
     }
     # the same trial from its plain record, as a sweep runs it
     assert env_arguments(result.env_kwargs) == {
-        "preset": "dahl2004_homogeneous",
-        "arena": {"source_service_s": 5.0},
+        "arena": tavc_env.resolve_arena("dahl2004_homogeneous", source_service_s=5.0),
         "options": options,
     }
     spec = TrialSpec(
@@ -397,7 +443,7 @@ def test_arena_and_options_reach_the_env_and_the_record() -> None:
     with pytest.raises(ValueError, match=r"unknown configuration key\(s\) \['presett'\]"):
         env_arguments({"presett": "dahl2004"})
     config = tavc_env.preset("dahl2004")
-    assert env_arguments({"config": config}) == {"config": config, "arena": {}}
+    assert env_arguments({"config": config}) == {"arena": tavc_env.resolve_arena(config)}
 
 
 class _Runaway(Exception):
@@ -414,7 +460,7 @@ def test_infinite_period_raises(field: str) -> None:
     kwargs = {"convergence_s": 60.0, "measured_s": 60.0, field: math.inf}
     with pytest.raises(ValueError, match=field):
         run_trial(
-            lambda agent: RandomAllocator(), seed=0, preset="dahl2004", progress=_guard, **kwargs
+            lambda agent: RandomAllocator(), seed=0, arena="dahl2004", progress=_guard, **kwargs
         )
 
 
@@ -424,7 +470,7 @@ def test_bad_snapshot_period_raises(period: float) -> None:
         run_trial(
             lambda agent: softmax_tavc(),
             seed=0,
-            preset="dahl2004",
+            arena="dahl2004",
             convergence_s=0.0,
             measured_s=120.0,
             snapshot_every_s=period,
@@ -486,7 +532,7 @@ def test_sweep_runs_and_saves_every_trial(sweep_once) -> None:
     assert results["softmax_seed0"].learner_stats and not results["random_seed0"].learner_stats
     # the same as running the trial directly
     direct = run_trial(
-        lambda a: softmax_tavc(), seed=1, preset="dahl2004", label="softmax_seed1", **TINY
+        lambda a: softmax_tavc(), seed=1, arena="dahl2004", label="softmax_seed1", **TINY
     )
     assert comparable(direct) == comparable(results["softmax_seed1"])
 

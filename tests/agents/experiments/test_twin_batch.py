@@ -82,7 +82,7 @@ def test_it_agrees_with_the_policy_based_twin(
                 seed=seed,
                 env_factory=twin,
                 snapshot_every_s=4 * 3600.0,
-                preset="dahl2004",
+                arena="dahl2004",
                 **HOURS,
             )
         )

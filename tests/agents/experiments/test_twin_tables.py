@@ -46,10 +46,10 @@ def comparable(result: TrialResult) -> dict[str, Any]:
 
 def test_the_default_factory_path_is_unchanged() -> None:
     softmax = make_allocator("softmax_tavc")
-    default = run_trial(softmax, seed=3, preset="dahl2004", **SHORT)
-    none = run_trial(softmax, seed=3, preset="dahl2004", env_factory=None, **SHORT)
+    default = run_trial(softmax, seed=3, arena="dahl2004", **SHORT)
+    none = run_trial(softmax, seed=3, arena="dahl2004", env_factory=None, **SHORT)
     explicit = run_trial(
-        softmax, seed=3, preset="dahl2004", env_factory=tavc_env.parallel_env, **SHORT
+        softmax, seed=3, arena="dahl2004", env_factory=tavc_env.parallel_env, **SHORT
     )
     assert comparable(none) == comparable(default) == comparable(explicit)
     assert "env_factory" not in default.env_kwargs
@@ -58,7 +58,7 @@ def test_the_default_factory_path_is_unchanged() -> None:
 
 def test_softmax_tavc_runs_twenty_hours_on_the_twin() -> None:
     results = [
-        run_trial(make_allocator("softmax_tavc"), seed=0, env_factory=TWIN, preset="dahl2004")
+        run_trial(make_allocator("softmax_tavc"), seed=0, env_factory=TWIN, arena="dahl2004")
         for _ in range(2)
     ]
     result = results[0]
@@ -73,7 +73,7 @@ def test_softmax_tavc_runs_twenty_hours_on_the_twin() -> None:
     assert len(result.q_snapshots) == 21
     assert set(result.learner_stats) == set(result.agents)
     assert result.jams == result.escapes == 0
-    other = run_trial(make_allocator("softmax_tavc"), seed=1, env_factory=TWIN, preset="dahl2004")
+    other = run_trial(make_allocator("softmax_tavc"), seed=1, env_factory=TWIN, arena="dahl2004")
     assert other.changes != result.changes
     # the record reads back
     assert TrialResult.from_dict(json.loads(json.dumps(result.to_dict()))).changes == result.changes
@@ -111,7 +111,7 @@ def test_a_bad_factory_is_refused() -> None:
             make_allocator("random"),
             seed=0,
             env_factory=TWIN,
-            preset="dahl2004_homogeneous",
+            arena="dahl2004_homogeneous",
             **SHORT,
         )
 

@@ -121,8 +121,8 @@ def test_a_task_yaml_with_aliases_is_refused_at_once_in_one_line(tmp_path: Path,
     level); a self-referencing alias gave a raw RecursionError. Aliases are refused."""
     import time
 
-    from tavc_env._files import CorruptFileError
     from tavc_env.adapters.benchmarl.config import load_task_config
+    from tavc_env.safe_files import CorruptFileError
     from tests.damage import no_hang
 
     path = tmp_path / "bomb.yaml"

@@ -117,14 +117,7 @@ def infos_of(env: ArenaEnv[object], agent: str) -> dict[str, object]:
     return {"action_required": env.must_decide(agent)}
 
 
-def test_moved_names_stay_importable_where_they_were() -> None:
-    from tavc_agents.experiments import measurement, twin_tables
-    from tavc_env import measurement as moved
-    from tavc_env import twin
+def test_the_tick_names_the_shared_types_it_uses() -> None:
     from tavc_env.engine import simulation
 
-    assert twin_tables.build_tables is twin.build_tables is twin.measure.build_tables
-    assert twin_tables.random_allocation_run is twin.random_allocation_run
-    assert measurement.run_fixed is moved.run_fixed
-    assert measurement.FixedAllocation is moved.FixedAllocation
     assert simulation.Advance is Advance and simulation.ScheduleEntry is ScheduleEntry

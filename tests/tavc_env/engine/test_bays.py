@@ -90,8 +90,7 @@ def test_bays_let_more_robots_work_a_circuit_at_once() -> None:
         result = run_trial(
             make_allocator("random"),
             seed=0,
-            preset="dahl2004",
-            arena={"station_bays": bays, "source_service_s": 40.0},
+            arena={"preset": "dahl2004", "station_bays": bays, "source_service_s": 40.0},
             convergence_s=0.0,
             measured_s=3600.0,
         )

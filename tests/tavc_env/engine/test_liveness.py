@@ -81,7 +81,7 @@ def test_the_presets_never_jam_and_trials_record_it() -> None:
             seed=3,
             convergence_s=0.0,
             measured_s=2 * 3600.0,
-            preset=preset,
+            arena=preset,
         )
         assert result.jams == 0 and result.jammed_s == 0.0, preset
     knotted = run_trial(

@@ -382,8 +382,7 @@ def test_a_knot_of_robots_is_dissolved_by_the_escape_behaviour() -> None:
         seed=2,
         convergence_s=6000.0,
         measured_s=1200.0,
-        preset="dahl2004",
-        arena={"source_service_s": 0.0, "sink_service_s": 0.0},
+        arena={"preset": "dahl2004", "source_service_s": 0.0, "sink_service_s": 0.0},
     )
     times = np.array(result.delivery_time_s)
     robots = np.array(result.delivery_robot)

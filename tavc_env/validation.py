@@ -4,6 +4,10 @@ wrong, the value given and what is allowed.
 Numbers are coerced here, at one point: `real` and `integer` check a value and return it as a
 plain `float` or `int`, so nothing past validation sees a numpy scalar, a `Fraction` or a
 `Decimal` (numba, numpy's float16 and string formatting fail on those deep inside a run).
+
+Public: the agent library (`tavc_agents`) and researchers' own code check their arguments with the
+same helpers (`require`, `is_number`, `is_integer`, `real`, `integer`), so every refusal of the
+project reads alike.
 """
 
 from __future__ import annotations

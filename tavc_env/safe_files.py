@@ -15,8 +15,9 @@ finite) raises `CorruptFileError`, a ValueError naming the file and what it is, 
 Files are written through `atomic_path`: a new file made with mode 0o666 less the umask (as
 `open` makes one), so a colleague sharing the folder reads it as they read the user's other files.
 
-This module sits at the lowest layer, so that the env's own readers (the BenchMARL task files)
-can use it; `tavc_agents.experiments.files` re-exports it with the record format on top.
+Public, at the lowest layer, so that the env's own readers (the BenchMARL task files) can use it
+as well as the agent library; `tavc_agents.experiments.files` re-exports it with the record format
+on top.
 """
 
 from __future__ import annotations
