@@ -35,19 +35,23 @@ episode. The script is `benchmarks/scenarios.py`.
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
+import tavc_env.scenarios
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
-from tavc_agents.evaluation import EvaluationSettings, value_per_hour
+from tavc_agents.evaluation import EvaluationSettings, episode_spec, value_per_hour
+from tavc_agents.experiments.files import write_text
 from tavc_agents.experiments.provenance import run_metadata
-from tavc_agents.experiments.runner import TrialResult, env_seed, trial_streams
+from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
     Outcome,
     refuse_invalid,
@@ -55,7 +59,7 @@ from tavc_agents.experiments.study import (
 )
 from tavc_agents.experiments.sweep import TrialSpec
 from tavc_agents.model import CompletionModel, SpeedClasses, load_model
-from tavc_env.scenarios import SCENARIOS, Scenario, ScenarioEnv
+from tavc_env.scenarios import REFERENCES_FILE, SCENARIOS, Scenario, ScenarioEnv
 
 MIN_HEADROOM = 0.15
 """The suite's rule: optimum - stay >= 15 % of the optimum in every scenario but the paper's."""
@@ -101,7 +105,7 @@ def episode(scenario: Scenario, seed: int, episode_s: float) -> tuple[list[int],
     plays: its env reset as the trial resets it (the priority shifts are drawn there), and the
     arena's breakdowns and repairs."""
     env = ScenarioEnv(scenario, max_sim_time_s=episode_s)
-    _, infos = env.reset(seed=env_seed(trial_streams(seed, len(env.possible_agents))[0]))
+    _, infos = env.reset(seed=seed)  # the episode of evaluation seed `seed` (runner.reset_seed)
     start = [int(infos[a]["circuit"]) for a in env.possible_agents]
     shifts = [(0.0, env.circuit_values), *env.value_plan]
     broken: list[tuple[float, float, int]] = [
@@ -179,30 +183,35 @@ def predicted(scenario: Scenario, seed: int, episode_s: float) -> Row:
 
 # -- physics -----------------------------------------------------------------------------------------
 def measure_specs(s: Settings) -> list[TrialSpec]:
-    """Every physics episode of the measure stage."""
-    specs = []
-    for name in s.scenarios:
-        scenario = SCENARIOS[name]
-        model = load_model(scenario.model).with_values(
-            [c.value for c in scenario.config().circuits]
-        )
-        for allocator in MEASURED:
-            kwargs = {"model": model.to_dict()} if allocator == "static" else {}
-            for seed in s.seeds_of(scenario):
-                specs.append(
-                    TrialSpec(
-                        key=f"{name}-{allocator}-{seed}",
-                        allocator=allocator,
-                        seed=seed,
-                        env_kwargs={"scenario": name},
-                        allocator_kwargs=kwargs,
-                        convergence_s=0.0,
-                        measured_s=s.episode_s(scenario),
-                        snapshot_every_s=s.episode_s(scenario),
-                        tags={"scenario": name, "allocator": allocator, "seed": seed},
-                    )
-                )
-    return specs
+    """Every physics episode of the measure stage: the suite's evaluation episodes
+    (`tavc_agents.evaluation.episode_spec`) of random allocation, `stay` and the static optimum."""
+    episode_h = None if s.episode_h is None else float(s.episode_h)
+    return [
+        episode_spec(name, seed, allocator, {}, episode_h)
+        for name in s.scenarios
+        for allocator in MEASURED
+        for seed in s.seeds_of(SCENARIOS[name])
+    ]
+
+
+def write_package_references(summary: Mapping[str, Mapping[str, Any]]) -> Path:
+    """Write the measured references into the package data the scenario envs and
+    `tavc_agents.evaluation` score with (`tavc_env.scenarios.REFERENCES_FILE`)."""
+    path = Path(tavc_env.scenarios.__file__).parent / REFERENCES_FILE
+    references = {
+        v["id"]: {k: v[k] for k in ("random_per_h", "stay_per_h", "optimum_per_h", "seeds")}
+        for v in summary.values()
+    }
+    text = json.dumps({"note": PACKAGE_NOTE, "references": references}, indent=1, sort_keys=True)
+    write_text(path, text + "\n")
+    return path
+
+
+PACKAGE_NOTE = (
+    "written by python benchmarks/scenarios.py --stage measure --update-reference (its "
+    "references.json summary): value per simulated hour of random allocation, stay and the model "
+    "optimum on each scenario's evaluation seeds"
+)
 
 
 # -- reports -----------------------------------------------------------------------------------------
@@ -338,6 +347,9 @@ def run(settings: Settings) -> Outcome:
     results, provenance = s.run_trials(measure_specs(s))
     report = measure_report(s, results, predictions)
     written = report.write(out, provenance)
+    full = not s.is_quick and s.seeds is None and s.episode_h is None
+    if s.update_reference and full and tuple(s.scenarios) == tuple(SCENARIOS):
+        written.append(write_package_references(report.summary))
     return Outcome(out, written, report.body)
 
 

@@ -140,6 +140,10 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self._last_task_by_circuit = np.full((n, m), math.nan)  # (rich observations)
         # deliveries since reset, each counting w_i / max w (the paper's measure, summed)
         self.delivered_value = 0.0
+        # deliveries since reset, each counting its circuit's value w when it was delivered (the
+        # suite's metric, summed: value per hour is this over the episode's simulated hours)
+        self.episode_value = 0.0
+        self._last_task_value = np.zeros(n)  # w paid for the task each robot completed this step
         self._renderer: Any = None
 
     # -- PettingZoo API ------------------------------------------------------------------------
@@ -170,6 +174,8 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self._last_task_time[:] = math.nan
         self._last_task_by_circuit[:] = math.nan
         self.delivered_value = 0.0
+        self.episode_value = 0.0
+        self._last_task_value[:] = 0.0
         return self._observations(), self._infos(truncated=False)
 
     def step(
@@ -442,6 +448,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
     def _rewards(self, out: Advance) -> dict[str, float]:
         rewards = dict.fromkeys(self.agents, 0.0)
         self._last_task_time[:] = math.nan
+        self._last_task_value[:] = 0.0
         unit = TIME_UNITS[self.options.reward_time_unit]
         per_value = self.options.reward == "value"
         values = self.sim.tasks.values
@@ -450,6 +457,8 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
             w = values[c.circuit]
             rewards[agent] += float(w if per_value else w / (c.task_time_s * unit))
             self.delivered_value += float(values[c.circuit] / values.max())
+            self.episode_value += float(w)
+            self._last_task_value[c.robot] = float(w)
             self._last_task_time[c.robot] = float(c.task_time_s)
             self._last_task_by_circuit[c.robot, c.circuit] = float(c.task_time_s)
         return rewards
@@ -489,6 +498,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
                 "broken": phase == Phase.BROKEN,
                 "task_completed": done,
                 "task_time_s": float(self._last_task_time[i]) if done else 0.0,
+                "task_value": float(self._last_task_value[i]) if done else 0.0,
                 "elapsed_s": float(now - tasks.decision_time[i]),
                 "sim_time_s": float(now),
                 "completed_tasks": int(tasks.completed[i]),
@@ -496,7 +506,23 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
             }
             if masks is not None:
                 infos[agent]["action_mask"] = masks[i]
+        if truncated:  # the episode's statistics, in every agent's final info
+            episode = self.episode_statistics()
+            for info in infos.values():
+                info["episode"] = dict(episode)
         return infos
+
+    def episode_statistics(self) -> dict[str, float]:
+        """The episode so far: its delivered value (each delivery counting its circuit's value
+        when delivered), simulated time, value per simulated hour (the suite's metric) and
+        deliveries. Every agent's info carries it at the episode's last step, as `"episode"`."""
+        hours = self.sim.time_s / 3600.0
+        return {
+            "value": self.episode_value,
+            "sim_time_s": float(self.sim.time_s),
+            "value_per_hour": self.episode_value / hours if hours > 0 else math.nan,
+            "deliveries": float(np.sum(self.sim.tasks.completed)),
+        }
 
 
 class TavcArenaEnv(ArenaEnv[Simulation]):

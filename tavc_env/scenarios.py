@@ -15,9 +15,11 @@ it is, is said in `SCENARIOS` beside it.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
@@ -27,7 +29,12 @@ from pettingzoo.utils.env import AECEnv
 from tavc_env.config import ArenaConfig, Breakdown, make_config
 from tavc_env.env import TavcArenaEnv, aec_view
 from tavc_env.options import OPTION_KEYS, EnvOptions
+from tavc_env.safe_files import read_json
 from tavc_env.validation import is_integer, is_number, require
+
+REFERENCES_FILE = "data/scenario_references.json"
+"""The scenarios' committed references (package data, beside this module): value per hour of
+random allocation, `stay` and the model optimum on each scenario's evaluation seeds, by id."""
 
 METRIC = "value_per_hour"
 """The evaluation metric of every scenario: delivered value per simulated hour over the whole
@@ -161,6 +168,46 @@ class Scenario:
         """The scenario's arena."""
         return make_config(self.preset, **dict(self.arena))
 
+    @property
+    def references(self) -> References | None:
+        """The scenario's committed references (None for a scenario of your own, or a version
+        that has none)."""
+        return scenario_references().get(self.id)
+
+    def score(self, value_per_hour: float) -> float:
+        """`value_per_hour` normalised between random allocation (0) and the model optimum (1);
+        a ValueError for a scenario without references."""
+        refs = self.references
+        require(refs is not None, "scenario", self.id, "a scenario with committed references")
+        assert refs is not None
+        return (value_per_hour - refs.random_per_h) / (refs.optimum_per_h - refs.random_per_h)
+
+
+@dataclass(frozen=True)
+class References:
+    """What a scenario's scores are normalised with: value per simulated hour of random
+    allocation, of `stay` and of the model optimum, over `seeds` evaluation seeds."""
+
+    random_per_h: float
+    stay_per_h: float
+    optimum_per_h: float
+    seeds: int
+
+
+@functools.cache
+def scenario_references() -> Mapping[str, References]:
+    """Every scenario's committed references by id (`REFERENCES_FILE`, package data)."""
+    path = Path(__file__).parent / REFERENCES_FILE
+    data = read_json(path, 1 << 20, "the scenarios' references")
+    return MappingProxyType(
+        {
+            id_: References(
+                **{k: v[k] for k in ("random_per_h", "stay_per_h", "optimum_per_h", "seeds")}
+            )
+            for id_, v in data["references"].items()
+        }
+    )
+
 
 # The suite. Each entry says why it is built so (DESIGN.md section 7 and docs/results/scenarios.md
 # give the model's prediction and the physics' references). The robots of `dahl2004` are
@@ -291,6 +338,14 @@ class ScenarioEnv(TavcArenaEnv):
         base = options if options is not None else EnvOptions(max_sim_time_s=chosen.episode_s)
         super().__init__(config=chosen.config(), options=base, **option_overrides)
         self.scenario = chosen
+
+    def episode_statistics(self) -> dict[str, float]:
+        """The arena env's episode statistics and, for a scenario with committed references, the
+        episode's normalised score (`Scenario.score`: 0 random allocation, 1 the model optimum)."""
+        stats = super().episode_statistics()
+        if self.scenario.references is not None and stats["sim_time_s"] > 0:
+            stats["score"] = self.scenario.score(stats["value_per_hour"])
+        return stats
 
     def _plan_values(self, rng: np.random.Generator) -> list[tuple[float, tuple[float, ...]]]:
         shifts = self.scenario.value_shifts

@@ -7,8 +7,13 @@ and the allocators the leaderboard compares.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import inspect
-from collections.abc import Mapping, Sequence
+import json
+import tempfile
+import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -17,8 +22,9 @@ import numpy as np
 from scipy import stats
 
 from tavc_agents.experiments.files import read_report
+from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.registry import REGISTRY
-from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.runner import TrialResult, run_trial
 from tavc_agents.experiments.study import (
     RESULTS_DIR,
     StudySettings,
@@ -26,8 +32,13 @@ from tavc_agents.experiments.study import (
     positive,
     refuse_invalid,
 )
-from tavc_agents.model import CompletionModel
-from tavc_env.scenarios import SCENARIOS, Scenario
+from tavc_agents.experiments.sweep import TrialSpec, run_sweep
+from tavc_agents.learners.network import READOUTS, declared_layers
+from tavc_agents.model import CompletionModel, load_model
+from tavc_agents.policy import Policy
+from tavc_env.safe_files import atomic_path
+from tavc_env.scenarios import SCENARIOS, Scenario, ScenarioEnv
+from tavc_env.validation import is_integer, is_number
 
 
 # -- the episodes and the metric --------------------------------------------------------------------
@@ -196,3 +207,397 @@ def allocators(
 def takes_model(name: str) -> bool:
     """Whether the factory of allocator `name` has a `model` parameter."""
     return "model" in inspect.signature(REGISTRY.get(name).factory).parameters
+
+
+# -- scoring an agent: `evaluate` -------------------------------------------------------------------
+PettingZooPolicy = Callable[[Mapping[str, Any], Mapping[str, Mapping[str, Any]]], Mapping[str, int]]
+"""A policy as an RL researcher has one for the parallel env: `policy(observations, infos)` gives
+an action for every robot whose info says `action_required` (others may be given and are ignored
+while they are busy); an optional `policy.reset(seed)` is called before each episode."""
+
+SUITE = "suite"
+"""`evaluate(..., scenarios="suite")`: every scenario of `SCENARIOS`."""
+
+
+class EvaluationError(ValueError):
+    """An agent that cannot be evaluated, or that failed in an episode (the message names the
+    scenario, the episode's seed and the robot)."""
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One evaluation episode: its scenario, seed, value per simulated hour and normalised score."""
+
+    scenario: str
+    seed: int
+    value_per_hour: float
+    score: float
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What `evaluate` measured: every episode, and per scenario (and over the suite, stratified by
+    scenario) the IQM of the normalised scores with its 95 % percentile bootstrap interval."""
+
+    name: str
+    kind: str
+    readout: str
+    episode_h: float | None
+    episodes: tuple[Episode, ...]
+    iqm: Mapping[str, tuple[float, float, float]]
+    suite: tuple[float, float, float] | None
+    metadata: Mapping[str, Any]
+
+    def scores(self, scenario: str) -> list[float]:
+        return [e.score for e in self.episodes if e.scenario == scenario]
+
+    def table(self) -> str:
+        """The result as a Markdown table: IQM [95 % CI] per scenario, and the suite's."""
+        rows = [
+            "| scenario | episodes | IQM score [95 % CI] | mean value per hour |",
+            "|---|---|---|---|",
+        ]
+        for name, (point, low, high) in self.iqm.items():
+            values = [e.value_per_hour for e in self.episodes if e.scenario == name]
+            rows.append(
+                f"| {name} | {len(values)} | {point:.3f} [{low:.3f}, {high:.3f}] | "
+                f"{float(np.mean(values)):,.0f} |"
+            )
+        if self.suite is not None:
+            point, low, high = self.suite
+            rows.append(
+                f"| **suite** (stratified) | {len(self.episodes)} | "
+                f"{point:.3f} [{low:.3f}, {high:.3f}] | |"
+            )
+        return "\n".join(rows)
+
+    def to_row(self) -> dict[str, Any]:
+        """The leaderboard row (`benchmarks/leaderboard.py --rows FILE`): plain JSON data."""
+        return {
+            "format": ROW_FORMAT,
+            "name": self.name,
+            "kind": self.kind,
+            "readout": self.readout,
+            "episode_h": self.episode_h,
+            "episodes": [dataclasses.asdict(e) for e in self.episodes],
+            "iqm": {k: list(v) for k, v in self.iqm.items()},
+            "suite": None if self.suite is None else list(self.suite),
+            "metadata": dict(self.metadata),
+        }
+
+    def save(self, path: str | Path) -> Path:
+        """Write the leaderboard row to `path` (JSON, atomically: a kill leaves the old file or
+        the new one, never half of one)."""
+        with atomic_path(Path(path)) as tmp:
+            tmp.write_text(json.dumps(self.to_row(), indent=1) + "\n", encoding="utf-8")
+        return Path(path)
+
+
+ROW_FORMAT = "tavc-leaderboard-row-1"
+
+
+def read_row(path: str | Path) -> dict[str, Any]:
+    """A leaderboard row written by `Evaluation.save` (checked: its format, and scores for
+    scenarios of the suite on their evaluation seeds)."""
+    data = read_report(Path(path))
+    if not isinstance(data, dict) or data.get("format") != ROW_FORMAT:
+        raise EvaluationError(
+            f"{path} is not a leaderboard row; allowed: a file written by tavc evaluate --out "
+            f"(format {ROW_FORMAT!r})"
+        )
+    for e in data["episodes"]:
+        scenario = SCENARIOS.get(e["scenario"])
+        if scenario is None or e["seed"] not in scenario.eval_seeds:
+            raise EvaluationError(
+                f"{path}: episode {e['scenario']!r} seed {e['seed']!r} is not an evaluation "
+                "episode of the suite; allowed: a scenario of SCENARIOS on its eval_seeds"
+            )
+    return data
+
+
+def scenario_list(scenarios: str | Sequence[str]) -> list[str]:
+    """`scenarios` as names of `SCENARIOS`: one name, several, or `"suite"` for all."""
+    names = (
+        list(SCENARIOS)
+        if scenarios == SUITE
+        else [scenarios]
+        if isinstance(scenarios, str)
+        else list(scenarios)
+    )
+    unknown = [n for n in names if n not in SCENARIOS]
+    if not names or unknown:
+        raise EvaluationError(
+            f"scenario {unknown[0] if unknown else names!r} is unknown; allowed: one or more of "
+            f"{', '.join(SCENARIOS)}, or {SUITE!r}"
+        )
+    missing = [n for n in names if SCENARIOS[n].references is None]
+    if missing:
+        raise EvaluationError(f"scenario {missing[0]!r} has no committed references to score with")
+    return names
+
+
+def evaluate(
+    agent: str | Path | Callable[..., Any],
+    scenarios: str | Sequence[str] = SUITE,
+    *,
+    seeds: int | Sequence[int] | None = None,
+    episode_h: float | None = None,
+    params: Mapping[str, Any] | None = None,
+    readout: str = "sampled",
+    workers: int = 1,
+    name: str | None = None,
+    resamples: int = 10_000,
+    bootstrap_seed: int = 0,
+    progress: bool = False,
+) -> Evaluation:
+    """Score `agent` on the suite's evaluation protocol: each scenario's evaluation seeds (episode
+    s is exactly `env.reset(seed=s)` on the scenario's env), its episode length and its metric,
+    normalised with its committed references; IQM with a stratified bootstrap interval.
+
+    `agent` is one of:
+      - a registered allocator's name (`tavc_agents.experiments.registry`, plugins included;
+        `params` are its parameters; the model-based ones get the scenario's TAVC model);
+      - a saved network (`.npz` path, `Mlp.save`), read out `readout`: `"sampled"` (as a
+        stochastic policy acts, from each robot's seeded generator) or `"greedy"`;
+      - a `Policy` factory (a callable taking an agent's name, returning a `Policy`);
+      - a PettingZoo-style policy (`PettingZooPolicy`: a callable taking `(observations,
+        infos)`), run on the scenario's parallel env with its default observations.
+
+    `seeds`: how many of each scenario's evaluation seeds (the first ones), or the seeds
+    themselves (each an evaluation seed), default all. `episode_h`: shorter episodes than the
+    scenario's (their scores are not the leaderboard's). `workers`: processes for a named
+    allocator or a network (a callable runs in this process).
+    """
+    names = scenario_list(scenarios)
+    plan = _episodes(names, seeds)
+    if episode_h is not None and not (is_number(episode_h) and 0 < episode_h <= 24):
+        raise EvaluationError(f"episode_h = {episode_h!r} is invalid; allowed: hours in (0, 24]")
+    if not (is_integer(workers) and workers >= 1):
+        raise EvaluationError(f"workers = {workers!r} is invalid; allowed: an integer >= 1")
+    if not (is_integer(resamples) and resamples >= 100):
+        raise EvaluationError(f"resamples = {resamples!r} is invalid; allowed: an integer >= 100")
+    kind, label, run = _runner(agent, params, readout, names)
+    started = time.process_time()
+    values = run(plan, episode_h, workers, progress)
+    episodes = tuple(
+        Episode(s, seed, v, SCENARIOS[s].score(v)) for (s, seed), v in zip(plan, values)
+    )
+    rng = np.random.default_rng(bootstrap_seed)
+    per = {s: [e.score for e in episodes if e.scenario == s] for s in names}
+    iqm_of = {s: iqm_ci([per[s]], resamples, rng) for s in names}
+    suite = iqm_ci(list(per.values()), resamples, rng) if len(names) > 1 else None
+    return Evaluation(
+        name=name or label,
+        kind=kind,
+        readout=readout if kind == "network" else "as it acts",
+        episode_h=episode_h,
+        episodes=episodes,
+        iqm=iqm_of,
+        suite=suite,
+        metadata=run_metadata(evaluation_cpu_s=round(time.process_time() - started, 2)),
+    )
+
+
+def _episodes(names: Sequence[str], seeds: int | Sequence[int] | None) -> list[tuple[str, int]]:
+    plan = []
+    for name in names:
+        protocol = SCENARIOS[name].eval_seeds
+        if seeds is None:
+            chosen: Sequence[int] = protocol
+        elif is_integer(seeds) and not isinstance(seeds, bool):
+            if not 1 <= int(seeds) <= len(protocol):  # type: ignore[arg-type]
+                raise EvaluationError(
+                    f"seeds = {seeds!r} is invalid; allowed: 1 to {len(protocol)} (the number "
+                    f"of {name}'s evaluation seeds), or a list of them"
+                )
+            chosen = protocol[: int(seeds)]  # type: ignore[arg-type]
+        elif isinstance(seeds, Sequence) and len(seeds) >= 1:
+            bad = [s for s in seeds if not is_integer(s) or s not in protocol]
+            if bad:
+                raise EvaluationError(
+                    f"seed {bad[0]!r} of scenario {name!r} is invalid; allowed: its evaluation "
+                    f"seeds {protocol[0]}..{protocol[-1]} (train on others)"
+                )
+            chosen = [int(s) for s in seeds]
+        else:
+            raise EvaluationError(
+                f"seeds = {seeds!r} is invalid; allowed: None, a count, or a list of evaluation seeds"
+            )
+        plan += [(name, int(s)) for s in chosen]
+    return plan
+
+
+Runner = Callable[[list[tuple[str, int]], "float | None", int, bool], list[float]]
+
+
+def _runner(
+    agent: Any, params: Mapping[str, Any] | None, readout: str, names: Sequence[str]
+) -> tuple[str, str, Runner]:
+    """(kind, label, the function that runs a list of episodes) for `agent`; refused in one line
+    before any episode when it cannot be run."""
+    if readout not in READOUTS:
+        raise EvaluationError(f"readout = {readout!r} is invalid; allowed: one of {list(READOUTS)}")
+    if isinstance(agent, Path) or (isinstance(agent, str) and agent.endswith(".npz")):
+        path = Path(agent)
+        try:
+            layers = declared_layers(path)
+        except (OSError, ValueError) as error:
+            raise EvaluationError(f"network {path}: {error}") from error
+        for name in names:
+            config = SCENARIOS[name].config()
+            inputs = config.n_circuits + config.n_robots
+            if layers[0][1] != inputs or layers[-1][0] != config.n_circuits:
+                raise EvaluationError(
+                    f"network {path} takes {layers[0][1]} inputs and gives {layers[-1][0]} "
+                    f"scores; scenario {name!r} needs {inputs} inputs (paper_id) and "
+                    f"{config.n_circuits} scores: it was trained for another arena"
+                )
+        kwargs = {"weights": str(path), "readout": readout}
+        return "network", path.stem, functools.partial(_run_named, "network", kwargs)
+    if isinstance(agent, str):
+        if agent not in REGISTRY.names():
+            raise EvaluationError(
+                f"allocator {agent!r} is unknown; allowed: one of {', '.join(REGISTRY.names())} "
+                "(or a Policy factory, a PettingZoo-style policy, or a network's .npz)"
+            )
+        return "allocator", agent, functools.partial(_run_named, agent, dict(params or {}))
+    if callable(agent):
+        if params:
+            raise EvaluationError("params are for a named allocator; allowed: none with a callable")
+        label = getattr(agent, "__name__", type(agent).__name__)
+        if _positional_parameters(agent) >= 2:
+            return "pettingzoo policy", label, functools.partial(_run_pettingzoo, agent)
+        return "policy factory", label, functools.partial(_run_factory, agent)
+    raise EvaluationError(
+        f"agent = {agent!r} is invalid; allowed: an allocator's name, a network's .npz path, a "
+        "Policy factory or a PettingZoo-style policy(observations, infos)"
+    )
+
+
+def _positional_parameters(fn: Callable[..., Any]) -> int:
+    try:
+        signature = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return 1
+    kinds = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    return sum(p.kind in kinds for p in signature.parameters.values())
+
+
+def _episode_s(scenario: str, episode_h: float | None) -> float:
+    return SCENARIOS[scenario].episode_s if episode_h is None else float(episode_h) * 3600.0
+
+
+def episode_spec(
+    scenario: str, seed: int, allocator: str, kwargs: Mapping[str, Any], episode_h: float | None
+) -> TrialSpec:
+    """Evaluation episode `seed` of `scenario` for a named allocator, as a sweep's trial: the
+    model-based allocators get the scenario's TAVC model at its start values."""
+    s = SCENARIOS[scenario]
+    kw = dict(kwargs)
+    if takes_model(allocator) and "model" not in kw:
+        values = [c.value for c in s.config().circuits]
+        kw["model"] = load_model(s.model).with_values(values).to_dict()
+    episode_s = _episode_s(scenario, episode_h)
+    return TrialSpec(
+        key=f"{scenario}__{allocator}__{seed}",
+        allocator=allocator,
+        allocator_kwargs=kw,
+        seed=seed,
+        env_kwargs={"scenario": scenario},
+        convergence_s=0.0,
+        measured_s=episode_s,
+        snapshot_every_s=episode_s,
+        tags={"scenario": scenario, "allocator": allocator, "seed": seed},
+    )
+
+
+def _run_named(
+    allocator: str,
+    kwargs: Mapping[str, Any],
+    plan: list[tuple[str, int]],
+    episode_h: float | None,
+    workers: int,
+    progress: bool,
+) -> list[float]:
+    specs = [episode_spec(s, seed, allocator, kwargs, episode_h) for s, seed in plan]
+    with tempfile.TemporaryDirectory(prefix="tavc-evaluate-") as tmp:
+        results = run_sweep(specs, tmp, workers=workers, progress_bar=progress)
+    return [value_per_hour(results[spec.key]) for spec in specs]
+
+
+def _run_factory(
+    factory: Callable[[str], Policy],
+    plan: list[tuple[str, int]],
+    episode_h: float | None,
+    workers: int,
+    progress: bool,
+) -> list[float]:
+    values = []
+    for scenario, seed in plan:
+        episode_s = _episode_s(scenario, episode_h)
+        try:
+            result = run_trial(
+                factory,
+                seed=seed,
+                convergence_s=0.0,
+                measured_s=episode_s,
+                snapshot_every_s=episode_s,
+                arena={"scenario": scenario},
+            )
+        except Exception as error:
+            raise EvaluationError(
+                f"scenario {scenario!r}, episode {seed}: the policy failed: "
+                f"{type(error).__name__}: {error}"
+            ) from error
+        values.append(value_per_hour(result))
+    return values
+
+
+def _run_pettingzoo(
+    policy: PettingZooPolicy,
+    plan: list[tuple[str, int]],
+    episode_h: float | None,
+    workers: int,
+    progress: bool,
+) -> list[float]:
+    values = []
+    for scenario, seed in plan:
+        env = ScenarioEnv(scenario, max_sim_time_s=_episode_s(scenario, episode_h))
+        reset = getattr(policy, "reset", None)
+        if callable(reset):
+            reset(seed)
+        observations, infos = env.reset(seed=seed)
+        final: Mapping[str, Any] = {}
+        while env.agents:
+            where = f"scenario {scenario!r}, episode {seed}, t = {env.sim_time_s:.1f} s"
+            try:
+                actions = policy(observations, infos)
+            except Exception as error:
+                raise EvaluationError(
+                    f"{where}: the policy raised {type(error).__name__}: {error}"
+                ) from error
+            if not isinstance(actions, Mapping):
+                raise EvaluationError(
+                    f"{where}: the policy returned {type(actions).__name__}; allowed: a mapping "
+                    "from robot name to circuit"
+                )
+            chosen = {}
+            for robot in env.agents:
+                if not infos[robot]["action_required"]:
+                    continue
+                if robot not in actions:
+                    raise EvaluationError(
+                        f"{where}: no action for {robot}, which must decide; allowed: a circuit "
+                        f"in 0..{env.config.n_circuits - 1}"
+                    )
+                action = actions[robot]
+                if not is_integer(action) or not 0 <= int(action) < env.config.n_circuits:
+                    raise EvaluationError(
+                        f"{where}: action {action!r} for {robot} is illegal; allowed: a circuit "
+                        f"in 0..{env.config.n_circuits - 1}"
+                    )
+                chosen[robot] = int(action)
+            observations, _, _, _, infos = env.step(chosen)
+            final = infos
+        values.append(float(next(iter(final.values()))["episode"]["value_per_hour"]))
+    return values

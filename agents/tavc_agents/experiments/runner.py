@@ -7,7 +7,11 @@ learners' Q-tables. The result is a plain, JSON-serialisable dataclass; the same
 result.
 
 Seeding: one `numpy.random.SeedSequence(seed)` is split into one stream for the env and one per
-policy, so adding a robot does not change the others' random draws.
+policy, so adding a robot does not change the others' random draws. On a scenario the seed is the
+episode's: the env is reset with `seed` itself (`reset_seed`), so a trial with seed s runs exactly
+the episode a user gets from `env.reset(seed=s)` on the scenario's env (the suite's evaluation
+seeds mean one thing everywhere); on a preset the env's seed is drawn from its stream, as it was
+when the committed preset trials were run.
 """
 
 from __future__ import annotations
@@ -230,8 +234,17 @@ def trial_streams(seed: int, n_agents: int) -> list[np.random.SeedSequence]:
 
 
 def env_seed(stream: np.random.SeedSequence) -> int:
-    """The seed a trial resets its env with, from the env's stream (`trial_streams(...)[0]`)."""
+    """The seed a preset trial resets its env with, from the env's stream (`trial_streams(...)[0]`)."""
     return int(stream.generate_state(1)[0])
+
+
+def reset_seed(seed: int, arena: Arena, n_agents: int) -> int:
+    """The seed a trial with seed `seed` resets its env with: on a scenario, `seed` itself (the
+    episode a user gets with `env.reset(seed=seed)`); on a preset, one drawn from the env's
+    stream (`env_seed`)."""
+    if arena.scenario is not None:
+        return seed
+    return env_seed(trial_streams(seed, n_agents)[0])
 
 
 def run_trial(
@@ -336,7 +349,7 @@ def run_trial(
             )
         table = dict(policies)
 
-    env_seq, *policy_seqs = trial_streams(seed, len(agents))
+    _, *policy_seqs = trial_streams(seed, len(agents))
     n_actions = env.config.n_circuits
     for agent, seq in zip(agents, policy_seqs):
         table[agent].reset(np.random.default_rng(seq), n_actions)
@@ -360,7 +373,7 @@ def run_trial(
         initial_circuits=[],
     )
     started = time.perf_counter()
-    obs, infos = env.reset(seed=env_seed(env_seq))
+    obs, infos = env.reset(seed=reset_seed(seed, resolved, len(agents)))
     result.initial_circuits = [infos[a]["circuit"] for a in agents]
     current = list(result.initial_circuits)
     driver = PolicyDriver({agent: table[agent] for agent in agents})
@@ -394,7 +407,7 @@ def run_trial(
                 result.delivery_robot.append(i)
                 result.delivery_circuit.append(infos[agent]["circuit"])
                 result.delivery_task_time_s.append(t)
-                result.delivery_value.append(env.circuit_values[infos[agent]["circuit"]])
+                result.delivery_value.append(infos[agent]["task_value"])  # w when delivered
         if progress is not None:
             progress(env.sim_time_s)
         if on_step is not None:

@@ -58,6 +58,7 @@ from tavc_agents.experiments.folders import forget_inherited, hold_folder
 from tavc_agents.experiments.registry import REGISTRY, Allocator, make_allocator
 from tavc_agents.experiments.runner import Event, TrialResult, env_arguments, run_trial
 from tavc_env import ArenaConfig
+from tavc_env.arena import resolve_env_kwargs
 
 _KEY = re.compile(r"^[A-Za-z0-9_.=-]+$")
 BACKENDS = ("local", "ray")
@@ -136,14 +137,16 @@ def spec_record(spec: TrialSpec) -> dict[str, Any]:
     if not data["tags"]:
         del data["tags"]
     data["arena"] = arena_digest(spec.env_kwargs)
+    if resolve_env_kwargs(spec.env_kwargs)[0].scenario is not None:
+        # a scenario trial's env is reset with its seed itself (runner.reset_seed); trials saved
+        # before that drew the env's seed from its stream, ran other episodes, and must not resume
+        data["reset_seed"] = "episode"
     return data
 
 
 def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
     """A short digest of the arena configuration that `env_kwargs` resolve to (the env's own
     options, such as time limits, are not part of the arena)."""
-    from tavc_env.arena import resolve_env_kwargs
-
     arena = resolve_env_kwargs(env_kwargs)[0]  # a scenario: its arena, and its priority shifts
     text = digest_text(arena.config)
     if arena.scenario is not None and arena.scenario.value_shifts is not None:

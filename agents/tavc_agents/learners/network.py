@@ -243,13 +243,22 @@ def check_layers(
         )
 
 
-class NetworkPolicy(NonLearning):
-    """One robot driven by a frozen network: the allowed action with the highest score. The input
-    is the observation followed by the one-hot of `robot` among `n_robots` (`paper_id`)."""
+READOUTS = ("greedy", "sampled")
+"""How a network's scores become an action: `greedy`, the allowed action with the highest score;
+`sampled`, an allowed action drawn from the softmax of the scores (the categorical policy a
+policy-gradient learner trained, as it acts), from the robot's own seeded generator."""
 
-    def __init__(self, mlp: Mlp, robot: int, n_robots: int) -> None:
+
+class NetworkPolicy(NonLearning):
+    """One robot driven by a frozen network, read out `greedy` or `sampled` (`READOUTS`). The
+    input is the observation followed by the one-hot of `robot` among `n_robots` (`paper_id`)."""
+
+    def __init__(self, mlp: Mlp, robot: int, n_robots: int, readout: str = "greedy") -> None:
+        require(readout in READOUTS, "readout", readout, f"one of {list(READOUTS)}")
         self.mlp = mlp
         self.robot_id = np.eye(n_robots)[robot]
+        self.readout = readout
+        self._rng: np.random.Generator | None = None
 
     def reset(self, rng: np.random.Generator, n_actions: int) -> None:
         require(
@@ -258,18 +267,26 @@ class NetworkPolicy(NonLearning):
             n_actions,
             f"{self.mlp.n_outputs} (the network's outputs)",
         )
+        self._rng = rng
 
     def act(self, observation: np.ndarray, action_mask: np.ndarray) -> int:
         allowed = allowed_actions(action_mask)
-        scores = self.mlp.scores(np.concatenate([observation, self.robot_id]))
-        return int(allowed[np.argmax(scores[allowed])])
+        scores = self.mlp.scores(np.concatenate([observation, self.robot_id]))[allowed]
+        if self.readout == "greedy":
+            return int(allowed[np.argmax(scores)])
+        if self._rng is None:
+            raise RuntimeError("a sampled network policy acted before reset (it has no generator)")
+        p = np.exp(scores - scores.max())
+        return int(allowed[self._rng.choice(len(allowed), p=p / p.sum())])
 
 
 class NetworkTeam:
     """The allocator `network`: every robot driven by the same frozen network (`weights`: the path
-    of an `.npz` from `Mlp.save`, or an `Mlp`)."""
+    of an `.npz` from `Mlp.save`, or an `Mlp`), read out `greedy` (the default) or `sampled`."""
 
-    def __init__(self, weights: str | Path | Mlp) -> None:
+    def __init__(self, weights: str | Path | Mlp, readout: str = "greedy") -> None:
+        require(readout in READOUTS, "readout", readout, f"one of {list(READOUTS)}")
+        self.readout = readout
         # a file's headers are checked now (so a missing or damaged one is refused before a
         # trial starts), its arrays read once the arena is known and agrees (`policies`)
         self.mlp: Mlp | None = weights if isinstance(weights, Mlp) else None
@@ -288,7 +305,9 @@ class NetworkTeam:
             self.mlp.n_inputs,
             f"{m + n}: the paper_id observation of {n} robots and {m} circuits",
         )
-        return {agent: NetworkPolicy(self.mlp, i, n) for i, agent in enumerate(agents)}
+        return {
+            agent: NetworkPolicy(self.mlp, i, n, self.readout) for i, agent in enumerate(agents)
+        }
 
     def observe(
         self, infos: Mapping[str, Mapping[str, Any]], circuit_values: Sequence[float]
