@@ -32,6 +32,7 @@ The script is `benchmarks/leaderboard.py`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from collections.abc import Mapping, Sequence
@@ -47,19 +48,23 @@ from tavc_agents.evaluation import (
     EvaluationSettings,
     ScoredSettings,
     allocators,
+    episode_spec,
     iqm_ci,
+    read_row,
     references,
     value_per_hour,
 )
 from tavc_agents.experiments.files import read_report
+from tavc_agents.experiments.registry import allocator_names
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
     Outcome,
     redraw,
     redraw_source,
+    refuse_invalid,
     run_study,
 )
-from tavc_agents.experiments.sweep import TrialSpec
+from tavc_agents.experiments.sweep import TagValue, TrialSpec
 from tavc_agents.model import load_model
 from tavc_env.scenarios import SCENARIOS
 
@@ -81,32 +86,94 @@ class Settings(EvaluationSettings, ScoredSettings):
     """smoke run: 2 seeds, 0.5-h episodes, 200 resamples"""
     figure_only: bool = False
     """run nothing: redraw leaderboard.png from the leaderboard.json already in the output folder"""
+    plugins: tuple[str, ...] = ()
+    """more allocators by registry name (your own, registered through the `tavc.allocators` entry
+    point or at run time), run on the same episodes"""
+    rows: tuple[Path, ...] = ()
+    """leaderboard rows written by `tavc evaluate --out` (or `Evaluation.save`), shown beside the
+    allocators; each must hold every episode of this leaderboard"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        known = set(allocator_names())
+        refuse_invalid(
+            self,
+            [
+                (
+                    "plugins",
+                    len(set(self.plugins)) == len(self.plugins)
+                    and all(p in known for p in self.plugins),
+                    f"distinct registered allocators ({', '.join(sorted(known))})",
+                ),
+                (
+                    "rows",
+                    all(Path(r).is_file() for r in self.rows),
+                    "files written by tavc evaluate --out",
+                ),
+            ],
+        )
+
+    def recorded(self) -> dict[str, Any]:
+        # only when given: reports without submissions record what they always did
+        extra = {"plugins": list(self.plugins)} if self.plugins else {}
+        extra |= {"rows": [str(r) for r in self.rows]} if self.rows else {}
+        return {**super().recorded(), **extra}
 
 
 def specs(s: Settings) -> list[TrialSpec]:
-    """Every episode: scenario by scenario, allocator by allocator, seed by seed. The model-based
-    allocators get the scenario's model at its start values."""
+    """Every episode: scenario by scenario, allocator by allocator, seed by seed (the suite's
+    evaluation episodes, `tavc_agents.evaluation.episode_spec`)."""
+    episode_h = None if s.episode_h is None else float(s.episode_h)
     out = []
     for name in s.scenarios:
         scenario = SCENARIOS[name]
         values = [c.value for c in scenario.config().circuits]
         model = load_model(scenario.model).with_values(values)
-        for allocator in allocators(model):
+        for allocator in allocators(model, plugins=s.plugins):
             for seed in s.seeds_of(scenario):
-                out.append(
-                    TrialSpec(
-                        key=f"{name}__{allocator.name}__{seed}",
-                        allocator=allocator.allocator,
-                        allocator_kwargs=allocator.kwargs,
-                        seed=seed,
-                        env_kwargs={"scenario": name},
-                        convergence_s=0.0,
-                        measured_s=s.episode_s(scenario),
-                        snapshot_every_s=s.episode_s(scenario),
-                        tags={"scenario": name, "allocator": allocator.name, "seed": seed},
-                    )
-                )
+                spec = episode_spec(name, seed, allocator.allocator, allocator.kwargs, episode_h)
+                tags: dict[str, TagValue] = {
+                    "scenario": name,
+                    "allocator": allocator.name,
+                    "seed": seed,
+                }
+                key = f"{name}__{allocator.name}__{seed}"
+                out.append(dataclasses.replace(spec, key=key, tags=tags))
     return out
+
+
+def submitted_rows(s: Settings, refs: Mapping[str, Mapping[str, float]]) -> list[Row]:
+    """The episodes of the submitted rows, scored with this leaderboard's references; a row that
+    lacks an episode of this leaderboard (or was run with other episode lengths) is refused."""
+    wanted = {(n, seed) for n in s.scenarios for seed in s.seeds_of(SCENARIOS[n])}
+    rows = []
+    for path in s.rows:
+        row = read_row(path)
+        if row["episode_h"] != s.episode_h:
+            raise ValueError(
+                f"rows: {path} was run with episode_h = {row['episode_h']}; allowed: this "
+                f"leaderboard's ({s.episode_h})"
+            )
+        have = {(e["scenario"], e["seed"]): e for e in row["episodes"]}
+        missing = sorted(wanted - set(have))
+        if missing:
+            raise ValueError(
+                f"rows: {path} lacks episode {missing[0]} and {len(missing) - 1} more of this "
+                "leaderboard; allowed: a row evaluated on the same scenarios and seeds"
+            )
+        for name, seed in sorted(wanted):
+            value, ref = float(have[(name, seed)]["value_per_hour"]), refs[name]
+            rows.append(
+                {
+                    "scenario": name,
+                    "allocator": f"{row['name']} (submitted)",
+                    "seed": seed,
+                    "value_per_h": value,
+                    "score": (value - ref["random"]) / (ref["optimum"] - ref["random"]),
+                    "wall_s": 0.0,
+                }
+            )
+    return rows
 
 
 def rows_of(
@@ -166,7 +233,8 @@ def report(s: Settings, rows: list[Row]) -> Report:
         f"bootstrap, {s.resamples} resamples; the suite's column resamples seeds within each "
         "scenario]. Allocators are sorted by the suite's IQM. The TAVC learners learn online "
         f"within each episode. {len(rows)} episodes, {wall / 60:.1f} min of episode wall time "
-        "in all (one process).\n\n" + markdown_table(header, table)
+        "in all (one process); a row marked submitted was evaluated elsewhere by "
+        "`tavc evaluate` on the same episodes.\n\n" + markdown_table(header, table)
     )
     rep = Report(
         "leaderboard", "Leaderboard: every allocator on every scenario", body, rows, summary
@@ -251,7 +319,7 @@ def run(settings: Settings) -> Outcome:
     refs = references(s.references)
     jobs = specs(s)
     results, provenance = s.run_trials(jobs)
-    rep = report(s, rows_of(jobs, results, refs))
+    rep = report(s, rows_of(jobs, results, refs) + submitted_rows(s, refs))
     written = rep.write(out, provenance)
     return Outcome(out, written, rep.body)
 

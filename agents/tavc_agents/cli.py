@@ -32,12 +32,14 @@ DESCRIPTION = (
 )
 EPILOG = (
     "Examples: tavc trial --allocator softmax_tavc --measured-h 2 | "
-    "tavc record --minutes 5 --out arena.gif | tavc plot timeline trial.json"
+    "tavc record --minutes 5 --out arena.gif | tavc plot timeline trial.json | "
+    "tavc evaluate --allocator greedy --scenario passing"
 )
 COMMANDS = {
     "trial": "run one trial and print a summary",
     "record": "record a trial to an animated GIF (or its last frame to a PNG)",
     "plot": "plot saved results (no rerun): timeline, q, interference, curve",
+    "evaluate": "score an agent on the scenario suite's evaluation protocol (IQM, 95 % CI)",
 }
 
 
@@ -275,6 +277,65 @@ def cmd_record(args: argparse.Namespace) -> int:
     return 0
 
 
+def _imported(spec: str) -> Any:
+    """The object `MODULE:NAME` names (a policy of your own), imported; a ValueError otherwise."""
+    import importlib
+
+    module_name, sep, attr = spec.partition(":")
+    if not sep or not module_name or not attr:
+        raise ValueError(
+            f"--policy {spec!r} is invalid; allowed: MODULE:NAME, e.g. my_pkg.agents:policy"
+        )
+    try:
+        found = getattr(importlib.import_module(module_name), attr)
+    except (ImportError, AttributeError) as error:
+        raise ValueError(f"--policy {spec!r} could not be imported: {error}") from error
+    if not callable(found):
+        raise ValueError(f"--policy {spec!r} is a {type(found).__name__}; allowed: a callable")
+    return found
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from tavc_agents.evaluation import SUITE, evaluate
+    from tavc_agents.experiments.command_line import parse_key_values
+
+    given = [x for x in (args.allocator, args.network, args.policy) if x is not None]
+    if len(given) != 1:
+        raise ValueError(
+            f"{len(given)} agents given; allowed: exactly one of --allocator NAME, --network PATH "
+            "or --policy MODULE:NAME"
+        )
+    if args.network is not None:
+        agent: Any = Path(args.network)
+    elif args.policy is not None:
+        agent = _imported(args.policy)
+    else:
+        agent = args.allocator
+    params = parse_key_values(args.param, "--param", "temperature=0.01")
+    scenarios = args.scenario or [SUITE]
+    result = evaluate(
+        agent,
+        SUITE if SUITE in scenarios else scenarios,
+        seeds=args.seeds,
+        episode_h=args.episode_h,
+        params=params,
+        readout=args.readout,
+        workers=args.workers,
+        name=args.name,
+        progress=True,
+    )
+    print(
+        f"{result.name} ({result.kind}, read out {result.readout}): normalised score, 0 = random "
+        "allocation, 1 = the model optimum; IQM over evaluation episodes [95 % bootstrap CI]"
+    )
+    print(result.table())
+    if args.out is not None:
+        print(
+            f"wrote {result.save(args.out)} (the leaderboard row: benchmarks/leaderboard.py --rows)"
+        )
+    return 0
+
+
 def cmd_plot(args: argparse.Namespace) -> int:
     from tavc_agents.analysis import plots
     from tavc_agents.experiments.provenance import CHECKOUT
@@ -434,6 +495,45 @@ def parser() -> argparse.ArgumentParser:
         "--out", type=Path, default=Path("arena.gif"), help="the .gif or .png to write"
     )
     record.set_defaults(run=cmd_record)
+
+    ev = sub.add_parser(
+        "evaluate",
+        help=COMMANDS["evaluate"],
+        description="Run an agent on the evaluation episodes of one or more scenarios (each "
+        "episode s is env.reset(seed=s) on the scenario's env, of the scenario's length) and print "
+        "each scenario's normalised score: the interquartile mean with a 95 % percentile bootstrap "
+        "interval, and the suite's (stratified by scenario). --out writes the leaderboard row.",
+    )
+    ev.add_argument("--allocator", default=None, help="a registered allocator's name (plugins too)")
+    ev.add_argument("--network", default=None, help="a saved network's .npz (Mlp.save)")
+    ev.add_argument(
+        "--policy",
+        default=None,
+        help="MODULE:NAME of a callable: policy(observations, infos) -> actions, or a Policy "
+        "factory taking an agent's name",
+    )
+    ev.add_argument(
+        "--param", action="append", default=[], metavar="KEY=VALUE", help="allocator parameter"
+    )
+    ev.add_argument(
+        "--scenario",
+        action="append",
+        default=None,
+        metavar="NAME",
+        help="a scenario (repeat for several; default: the whole suite, also 'suite')",
+    )
+    ev.add_argument("--seeds", type=int, default=None, help="the first N evaluation seeds (all)")
+    ev.add_argument("--episode-h", type=float, default=None, help="shorter episodes, hours")
+    ev.add_argument(
+        "--readout",
+        choices=["sampled", "greedy"],
+        default="sampled",
+        help="a network: sampled, as a stochastic policy acts (default), or greedy",
+    )
+    ev.add_argument("--workers", type=int, default=1, help="processes (allocators, networks)")
+    ev.add_argument("--name", default=None, help="the row's name (default: the agent's)")
+    ev.add_argument("--out", type=Path, default=None, help="write the leaderboard row (JSON)")
+    ev.set_defaults(run=cmd_evaluate)
 
     plot = sub.add_parser(
         "plot",
