@@ -48,6 +48,7 @@ from tavc_agents.evaluation import (
     EvaluationSettings,
     ScoredSettings,
     allocators,
+    episode_key,
     episode_spec,
     iqm_ci,
     read_row,
@@ -137,7 +138,7 @@ def specs(s: Settings) -> list[TrialSpec]:
                     "allocator": allocator.name,
                     "seed": seed,
                 }
-                key = f"{name}__{allocator.name}__{seed}"
+                key = episode_key(name, allocator.name, seed)
                 out.append(dataclasses.replace(spec, key=key, tags=tags))
     return out
 

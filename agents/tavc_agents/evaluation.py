@@ -487,6 +487,11 @@ def _episode_s(scenario: str, episode_h: float | None) -> float:
     return SCENARIOS[scenario].episode_s if episode_h is None else float(episode_h) * 3600.0
 
 
+def episode_key(scenario: str, allocator: str, seed: int) -> str:
+    """The trial key of evaluation episode `seed` of `scenario` for `allocator`."""
+    return f"{scenario}__{allocator}__{seed}"
+
+
 def episode_spec(
     scenario: str, seed: int, allocator: str, kwargs: Mapping[str, Any], episode_h: float | None
 ) -> TrialSpec:
@@ -499,7 +504,7 @@ def episode_spec(
         kw["model"] = load_model(s.model).with_values(values).to_dict()
     episode_s = _episode_s(scenario, episode_h)
     return TrialSpec(
-        key=f"{scenario}__{allocator}__{seed}",
+        key=episode_key(scenario, allocator, seed),
         allocator=allocator,
         allocator_kwargs=kw,
         seed=seed,
