@@ -299,9 +299,15 @@ def _existing(path: str | Path, allowed: str, *, folder: bool = False) -> Path:
 
 def _run_study(name: str, argv: Sequence[str], prog: str) -> int:
     """Run study `name` with command-line arguments `argv`, as `benchmarks/<name>.py` does."""
-    from tavc_agents.experiments.study import run_study
+    try:  # importing the study takes a second or two: Ctrl-C then is one line too
+        from tavc_agents.experiments.study import run_study
 
-    module = studies.load(name)
+        module = studies.load(name)
+    except KeyboardInterrupt:
+        print(
+            f"\n{prog}: interrupted before the study started; nothing was written.", file=sys.stderr
+        )
+        return 130
     return run_study(module, argv, module.__doc__ or name, prog)
 
 

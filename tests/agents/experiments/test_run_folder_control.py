@@ -364,3 +364,35 @@ def test_git_ignores_the_lock_in_committed_result_folders() -> None:
             ["git", "check-ignore", "-q", f"{folder}/{LOCK_FILE}"], cwd=ROOT, timeout=30
         )
         assert checked.returncode == 0, folder
+
+
+# -- Ctrl-C before a study's sweep starts ----------------------------------------------------------
+@pytest.mark.parametrize("phase", ["importing the study", "reading the settings", "the folder"])
+def test_ctrl_c_before_the_sweep_starts_is_one_line(
+    phase: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # issue 35: Ctrl-C in the first seconds of a study was a KeyboardInterrupt traceback
+    from tavc_agents import cli, studies
+    from tavc_agents.experiments import study
+
+    def interrupted(*args: object, **kwargs: object) -> Any:
+        raise KeyboardInterrupt
+
+    target = {
+        "importing the study": (studies, "load"),
+        "reading the settings": (study, "parse_settings"),
+        "the folder": (study, "check_out_folder"),
+    }[phase]
+    monkeypatch.setattr(*target, interrupted)
+    ran = []
+    monkeypatch.setattr("tavc_agents.studies.table1.run", lambda settings: ran.append(settings))
+    code = cli.main(["bench", "table1", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 130 and not ran
+    assert (
+        err.strip()
+        == "tavc bench table1: interrupted before the study started; nothing was written."
+    )
