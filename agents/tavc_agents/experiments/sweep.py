@@ -305,6 +305,8 @@ def _run_unfinished(
     records = {}
     for job in todo:  # bad input is refused before anything runs
         kind.check(job)
+        if backend == "ray":
+            _refuse_run_time_allocator_on_ray(job)
         records[kind.key(job)] = kind.record(job)
     failures: list[Failure] = []
 
@@ -346,6 +348,22 @@ def _run_unfinished(
     if failures:
         raise SweepError(failures, kind.unit)
     return results
+
+
+def _refuse_run_time_allocator_on_ray(job: object) -> None:
+    """A ValueError for a trial whose allocator was registered at run time: Ray workers find
+    allocators by entry point only, so every task would fail (or, for a name that replaced an
+    entry point or built-in, silently run that one instead)."""
+    if not isinstance(job, TrialSpec):
+        return
+    here = {entry.name for entry in REGISTRY.registered_at_run_time()}
+    if job.allocator in here:
+        raise ValueError(
+            f"allocator {job.allocator!r} of trial {job.key!r} was registered at run time "
+            "(register_allocator), which Ray workers do not see; allowed with backend 'ray': a "
+            "built-in allocator or a tavc.allocators entry point of an installed package (or "
+            "backend 'local')"
+        )
 
 
 def _saved(job: J, kind: JobKind[J, R], out: Path, move_aside: bool = True) -> tuple[R] | None:
