@@ -282,16 +282,19 @@ def run_study(
     is checked before any work and held for the whole run (`folders`): a folder that cannot be
     used, or that another run is writing, is refused in one line with exit code 2."""
     given = list(sys.argv[1:] if argv is None else argv)
-    settings = parse_settings(module.Settings, given, description, prog)
-    out = settings.out_dir()
     command = prog or f"python {sys.argv[0]}"
-    try:
+    out: Path | None = None
+    started = False  # whether the study has begun to run (and may have saved jobs)
+    try:  # Ctrl-C at any moment, from the first (reading the settings), is one line
+        settings = parse_settings(module.Settings, given, description, prog)
+        out = settings.out_dir()
         for option in ("--out", "--resume"):  # a Path cannot tell "" from "."
             if _given_empty(given, option):
                 check_out_folder("", option)
         check_out_folder(out, settings.out_option)
         with hold_folder(out):  # a second run on this folder is refused until this one ends
             print(f"Writing to {out}/", flush=True)
+            started = True
             outcome: Outcome = module.run(settings)
     except FolderError as error:  # refused before any work, in one line
         print(f"{command}: {error}", file=sys.stderr)
@@ -300,6 +303,12 @@ def run_study(
         print(f"\n{command}: {error}; continue with `{command} --resume {out}`", file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # Ctrl-C, or SIGTERM during a sweep: one line, not a traceback
+        if not started:
+            print(
+                f"\n{command}: interrupted before the study started; nothing was written.",
+                file=sys.stderr,
+            )
+            return 130
         print(
             f"\nInterrupted. The finished jobs are saved in {out}/; continue with "
             f"`{command} --resume {out}` (and the same other options).",
