@@ -45,8 +45,6 @@ import numpy as np
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.evaluation import (
-    EvaluationSettings,
-    ScoredSettings,
     allocators,
     episode_key,
     episode_spec,
@@ -59,7 +57,9 @@ from tavc_agents.experiments.files import read_report
 from tavc_agents.experiments.registry import allocator_names
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
+    EvaluationSettings,
     Outcome,
+    ScoredSettings,
     redraw,
     redraw_source,
     refuse_invalid,

@@ -49,7 +49,6 @@ import tavc_env.scenarios
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.evaluation import (
-    EvaluationSettings,
     episode_key,
     episode_spec,
     value_per_hour,
@@ -58,6 +57,7 @@ from tavc_agents.experiments.files import write_text
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
+    EvaluationSettings,
     Outcome,
     refuse_invalid,
     run_study,
