@@ -19,8 +19,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from tavc_env.config import ARENA_KEYS, ArenaConfig, make_config
-from tavc_env.engine.simulation import JAM_WINDOW_S
+from tavc_env.config import ARENA_KEYS, JAM_WINDOW_S, ArenaConfig, make_config
 from tavc_env.observations import check_observation_args
 from tavc_env.validation import is_integer, is_number, require, shown
 

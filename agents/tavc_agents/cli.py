@@ -39,7 +39,7 @@ COMMANDS = {
     "trial": "run one trial and print a summary",
     "record": "record a trial to an animated GIF (or its last frame to a PNG)",
     "plot": "plot saved results (no rerun): timeline, q, interference, curve",
-    "evaluate": "score an agent on the scenario suite's evaluation protocol (IQM, 95 % CI)",
+    "evaluate": "score an agent on the scenario suite's evaluation protocol (IQM with its interval)",
 }
 
 
