@@ -136,3 +136,25 @@ def test_a_network_for_another_arena_is_refused_before_any_episode(tmp_path: Pat
     mlp.save(path)
     with pytest.raises(EvaluationError, match="trained for another arena"):
         evaluate(path, "dahl2004", seeds=1)
+
+
+LEADERBOARD = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "leaderboard"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", list(SCENARIOS))
+def test_stay_on_the_plain_env_gives_the_committed_leaderboards_episodes(scenario: str) -> None:
+    """For every evaluation seed s, `stay` written as a PettingZoo-style policy and run on the
+    scenario's own env from `env.reset(seed=s)` gives exactly the committed leaderboard's value
+    per hour for episode s: a user's seed and the leaderboard's mean the same episode."""
+    import csv
+
+    with (LEADERBOARD / "leaderboard.csv").open(encoding="utf-8") as f:
+        committed = {
+            int(r["seed"]): float(r["value_per_h"])
+            for r in csv.DictReader(f)
+            if r["scenario"] == scenario and r["allocator"] == "stay"
+        }
+    assert sorted(committed) == list(SCENARIOS[scenario].eval_seeds)
+    mine = evaluate(stay, scenario)
+    assert {e.seed: e.value_per_hour for e in mine.episodes} == committed
