@@ -90,6 +90,7 @@ READOUTS = ("sampled", "greedy")
 allowed circuit drawn from the softmax of its scores, from each robot's seeded generator), and
 `greedy` (the highest score); in the report's order."""
 READOUT_TEXT = {"sampled": "sampled (as trained)", "greedy": "greedy (argmax)"}
+READOUT_COLOURS = {"sampled": "tab:green", "greedy": "tab:purple"}  # not the learners' C0, C1
 FIGURE = "deep_leaderboard.png"
 JOBS = "runs"
 NETWORKS = "networks"
@@ -969,7 +970,7 @@ def draw_readouts(
             if cell is not None:
                 scores = cell[readout]["scores"]
                 x = position + np.linspace(-0.15, 0.15, len(scores))
-                color = "C0" if readout == "sampled" else "C1"
+                color = READOUT_COLOURS[readout]
                 ax.scatter(x, scores, s=12, color=color, alpha=0.8)
                 ax.hlines(cell[readout]["iqm"], position - 0.3, position + 0.3, color=color)
             position += 1
