@@ -40,6 +40,10 @@ QUICK: dict[str, tuple[str, str | None]] = {
         "record --allocator softmax_tavc --minutes 0.5 --out arena.gif",
         "render",
     ),
+    "tavc evaluate --allocator greedy --scenario passing --out row.json": (
+        "evaluate --allocator greedy --scenario passing --seeds 3 --out row.json",
+        None,
+    ),
     "tavc plot timeline trial.json --out timeline.png": (
         "plot timeline trial.json --out timeline.png",
         "plot",
@@ -141,6 +145,23 @@ def check_library_and_plugin() -> None:
     said = done.stdout + done.stderr
     assert done.returncode == 0 and all(f"| {name} |" in said for name in plugins), said
     print("ok: benchmarks/allocators.py against the installed wheel, with the plugin's allocators")
+    # the evaluation protocol from the wheel: a plugin's allocator by name, and `stay` on
+    # bad_start reproducing the committed reference (the package data) exactly
+    said = tavc(f"evaluate --allocator {plugins[1]} --scenario passing --seeds 4")
+    assert "| passing | 4 |" in said, said
+    import numpy as np
+
+    from tavc_agents import evaluate
+    from tavc_env.scenarios import SCENARIOS
+
+    stay = evaluate("stay", "bad_start", workers=2)
+    values = [e.value_per_hour for e in stay.episodes]
+    committed = SCENARIOS["bad_start"].references
+    assert committed is not None and float(np.mean(values)) == committed.stay_per_h, (
+        values,
+        committed,
+    )
+    print(f"ok: stay on bad_start from the wheel: {committed.stay_per_h} per hour, as committed")
 
 
 def check_wheel_modules(extras: bool) -> None:

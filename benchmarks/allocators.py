@@ -55,10 +55,10 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from row_check import compare_rows, read_rows, run_fresh, sample_rows
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci_of, markdown_table, write_csv
+from tavc_agents.analysis.row_check import compare_rows, read_rows, run_fresh, sample_rows
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.evaluation import Allocator, allocators
 from tavc_agents.experiments.registry import allocator_names

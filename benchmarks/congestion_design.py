@@ -72,10 +72,10 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
+import arena_analysis as ia
 import arena_runs
+from arena_analysis import Elasticity, elasticity, seed_tables
 from arena_runs import BOOT_SEED, elasticity_jobs
-from tavc_agents.analysis import interference as ia
-from tavc_agents.analysis.elasticity import Elasticity, elasticity, seed_tables
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.analysis.stats import ratio_ci
 from tavc_agents.experiments.study import (

@@ -63,12 +63,13 @@ import numpy as np
 
 from tavc_agents.analysis.plots import count_ticks, subplots
 from tavc_agents.analysis.reports import Report, markdown_table
-from tavc_agents.evaluation import ScoredSettings, iqm_ci, references, value_per_hour
+from tavc_agents.evaluation import iqm_ci, references, value_per_hour
 from tavc_agents.experiments.files import read_csv, read_report
 from tavc_agents.experiments.runner import run_trial
 from tavc_agents.experiments.study import (
     RESULTS_DIR,
     Outcome,
+    ScoredSettings,
     at_least,
     positive,
     refuse_invalid,

@@ -31,8 +31,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from arena_analysis import group_rows
 from tavc_agents.allocators.baselines import RandomAllocator
-from tavc_agents.analysis.interference import group_rows
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.estimation import measured_rate

@@ -72,11 +72,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+import arena_analysis as ea
+import arena_analysis as ia
 import tavc_env
+from arena_analysis import FAST, PER_CLASS, SLOW
 from arena_runs import ELASTICITY_BOOT_SEED, RUNS, Job, job_key
-from tavc_agents.analysis import elasticity as ea
-from tavc_agents.analysis import interference as ia
-from tavc_agents.analysis.elasticity import FAST, PER_CLASS, SLOW
 from tavc_agents.analysis.reports import Report, fmt_ci, have_matplotlib, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.study import (

@@ -45,9 +45,8 @@ import numpy as np
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, markdown_table
 from tavc_agents.evaluation import (
-    EvaluationSettings,
-    ScoredSettings,
     allocators,
+    episode_key,
     episode_spec,
     iqm_ci,
     read_row,
@@ -58,7 +57,9 @@ from tavc_agents.experiments.files import read_report
 from tavc_agents.experiments.registry import allocator_names
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
+    EvaluationSettings,
     Outcome,
+    ScoredSettings,
     redraw,
     redraw_source,
     refuse_invalid,
@@ -137,7 +138,7 @@ def specs(s: Settings) -> list[TrialSpec]:
                     "allocator": allocator.name,
                     "seed": seed,
                 }
-                key = f"{name}__{allocator.name}__{seed}"
+                key = episode_key(name, allocator.name, seed)
                 out.append(dataclasses.replace(spec, key=key, tags=tags))
     return out
 

@@ -48,14 +48,13 @@ import numpy as np
 from scipy import stats
 
 import arena_runs
-from arena_runs import learner_of, measure_elasticity
+from arena_runs import learner_of, measure_elasticity, run_batch
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.files import read_report
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.study import RESULTS_DIR, Outcome, at_least, refuse_invalid, run_study
 from tavc_agents.experiments.sweep import run_jobs
-from tavc_agents.experiments.twin_batch import run_batch
 from tavc_agents.model import (
     CompletionModel,
     SpeedClasses,

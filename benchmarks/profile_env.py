@@ -20,8 +20,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from arena_runs import TEAM_SIZES, random_choice_run, team_config
 from tavc_agents.experiments.study import parse_settings
-from tavc_agents.experiments.timing import TEAM_SIZES, random_choice_run, team_config
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from arena_analysis import Elasticity
 from arena_runs import (
     CONDITIONS,
     DECISIVE,
@@ -69,7 +70,6 @@ from arena_runs import (
     twin_trials,
     welch_difference,
 )
-from tavc_agents.analysis.elasticity import Elasticity
 from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.experiments.provenance import run_metadata

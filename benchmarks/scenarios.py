@@ -48,11 +48,16 @@ import numpy as np
 import tavc_env.scenarios
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
-from tavc_agents.evaluation import EvaluationSettings, episode_spec, value_per_hour
+from tavc_agents.evaluation import (
+    episode_key,
+    episode_spec,
+    value_per_hour,
+)
 from tavc_agents.experiments.files import write_text
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
+    EvaluationSettings,
     Outcome,
     refuse_invalid,
     run_study,
@@ -269,7 +274,7 @@ def measure_report(
         scenario = SCENARIOS[name]
         per_seed: list[Row] = []
         for seed in s.seeds_of(scenario):
-            got = {a: value_per_hour(results[f"{name}-{a}-{seed}"]) for a in MEASURED}
+            got = {a: value_per_hour(results[episode_key(name, a, seed)]) for a in MEASURED}
             model = next(r for r in predictions if r["scenario"] == name and r["seed"] == seed)
             optimum = float(model["optimum_per_h"])
             span = optimum - got["random"]

@@ -27,7 +27,7 @@ loop (ticks per CPU second, paired by round), peak memory. Goal (issue 24): at 6
 Throughput of the arena by team size against two yardsticks of the same physics, in CPU time.
 
 For each case (a team size, event-driven or fixed-interval stepping) the PettingZoo env runs with
-random choices (`tavc_agents.experiments.timing.random_choice_run`), and beside it, in the
+random choices (`arena_runs.random_choice_run`), and beside it, in the
 same process and round:
 
 * `floor`: a bare pymunk loop of the same bodies (the engine's `World`: same radius, mass, dt,
@@ -53,13 +53,13 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import tavc_env
+from arena_runs import TEAM_SIZES as SIZES
+from arena_runs import random_choice_run
+from arena_runs import team_config as config_for
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.study import Outcome, StudySettings, run_study
-from tavc_agents.experiments.timing import TEAM_SIZES as SIZES
-from tavc_agents.experiments.timing import random_choice_run
-from tavc_agents.experiments.timing import team_config as config_for
 from tavc_env.config import ArenaConfig
 from tavc_env.measurement import physics_floor, physics_replay
 

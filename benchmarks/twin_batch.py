@@ -39,7 +39,7 @@ import numpy as np
 
 import arena_runs
 import tavc_env
-from arena_runs import learner_of
+from arena_runs import learner_of, run_batch
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.registry import make_allocator
@@ -53,7 +53,6 @@ from tavc_agents.experiments.study import (
     run_study,
 )
 from tavc_agents.experiments.sweep import json_jobs, saved_results
-from tavc_agents.experiments.twin_batch import run_batch
 from tavc_env.twin import InterferenceTables
 
 Row = dict[str, Any]

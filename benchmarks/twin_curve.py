@@ -48,11 +48,11 @@ import numpy as np
 
 import arena_runs
 import tavc_env
-from arena_runs import learner_of
+from arena_analysis import Family, reach, with_elasticity
+from arena_runs import learner_of, run_batch
 from tavc_agents.analysis.plots import Curve, PhysicsPoint, differentiation_figure
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
-from tavc_agents.analysis.synthetic_tables import Family, reach, with_elasticity
 from tavc_agents.experiments.files import read_csv, read_report
 from tavc_agents.experiments.study import (
     RESULTS_DIR,
@@ -65,7 +65,6 @@ from tavc_agents.experiments.study import (
     run_study,
 )
 from tavc_agents.experiments.sweep import json_jobs
-from tavc_agents.experiments.twin_batch import run_batch
 
 CONDITIONS = (*(arena_runs.softmax_condition(t) for t in (0.002, 0.005, 0.01)), "epsilon_0.1")
 GRID = "0.75,0.8,0.9,1,1.1,1.2,1.3,1.4,1.5,1.6,1.7,1.8,1.9,2"

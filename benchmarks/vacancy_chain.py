@@ -55,10 +55,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from row_check import compare_rows, run_fresh, sample_rows
 from tavc_agents.analysis import allocation
 from tavc_agents.analysis.plots import allocation_timeline
 from tavc_agents.analysis.reports import Report, fmt_ci_of, markdown_table, write_csv
+from tavc_agents.analysis.row_check import compare_rows, run_fresh, sample_rows
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.runner import Event, TrialResult
 from tavc_agents.experiments.study import (

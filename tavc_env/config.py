@@ -799,3 +799,6 @@ def scaled_config(
         f"circuits: no arena up to {probe.width:g} x {probe.height:g} m (lanes up to 4 x "
         f"{lane_spacing_m:g} m apart) has waiting lines for {n} robots (at most {held + 1})"
     )
+
+
+JAM_WINDOW_S = 600.0  # the jam detector's default window: ten typical tasks of the shipped arenas without any progress

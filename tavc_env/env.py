@@ -162,6 +162,12 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
             seed,
             "None or an integer >= 0 (int or numpy integer; not bool, not float)",
         )
+        require(
+            options is None or isinstance(options, Mapping),
+            "options",
+            options,
+            "None or a mapping (this env takes no reset options)",
+        )
         if seed is not None or self._rng is None:
             self._rng, _ = seeding.np_random(None if seed is None else int(seed))
         # planned before the arena's reset, so that the arena's own history starts after it

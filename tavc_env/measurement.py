@@ -2,7 +2,7 @@
 each robot spends in each mode of its task (`ModeTicks`, by `Mode`), one that watches the spacing
 between robots (`SpacingMonitor`), and the bare-physics yardsticks of the engine's speed
 (`CommandRecorder`, `physics_replay`, `physics_floor`; the env's own speed is timed by
-`tavc_agents.experiments.timing`).
+`benchmarks/arena_runs.py`).
 
 Observers attach with `Simulation.add_observer` and only read the simulation's public views, so a
 measured run follows exactly the trajectory of an unmeasured one. What the runs measure feeds the
@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from tavc_env.config import JAM_WINDOW_S as JAM_WINDOW_S
 from tavc_env.config import ArenaConfig, make_config
 
 # Public here, for what measures the engine from outside it: the modes ModeTicks counts, the task
@@ -31,7 +32,6 @@ from tavc_env.config import ArenaConfig, make_config
 from tavc_env.engine.navigation import STUCK_PATIENCE_S as STUCK_PATIENCE_S
 from tavc_env.engine.navigation import compiled_cache_ready as compiled_cache_ready
 from tavc_env.engine.simulation import JAM_MOTION_M as JAM_MOTION_M
-from tavc_env.engine.simulation import JAM_WINDOW_S as JAM_WINDOW_S
 from tavc_env.engine.simulation import EngineEvent, Simulation
 from tavc_env.engine.tasks import PHASE_NAMES as PHASE_NAMES
 from tavc_env.engine.tasks import Mode as Mode

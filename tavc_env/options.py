@@ -12,16 +12,16 @@ and rendering. `resolve_env_args` is the one place where the keyword arguments o
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from tavc_env.config import ARENA_KEYS, ArenaConfig, make_config
-from tavc_env.engine.simulation import JAM_WINDOW_S
+from tavc_env.config import ARENA_KEYS, JAM_WINDOW_S, ArenaConfig, make_config
 from tavc_env.observations import check_observation_args
-from tavc_env.validation import is_integer, is_number, require
+from tavc_env.validation import is_integer, is_number, require, shown
 
 RENDER_MODES = ("human", "rgb_array")
 TIME_UNITS = {"ms": 1000.0, "s": 1.0}
@@ -202,6 +202,38 @@ class EnvOptions:
 
 
 OPTION_KEYS = tuple(f.name for f in dataclasses.fields(EnvOptions))
+
+
+class UnknownOptionError(TypeError, ValueError):
+    """`EnvOptions` given a field it does not have (a TypeError, as Python's own for an unexpected
+    keyword, and a ValueError, as the package's other refusals)."""
+
+
+def _refuse_unknown_fields(init: Any) -> Any:
+    """`EnvOptions.__init__`, refusing a keyword that is not a field with a message naming it and
+    every field (the dataclass's own says only "unexpected keyword argument")."""
+
+    @functools.wraps(init)
+    def checked(self: EnvOptions, *args: Any, **kwargs: Any) -> None:
+        unknown = [k for k in kwargs if k not in OPTION_KEYS]
+        if unknown:
+            given = ", ".join(f"{k}={shown(kwargs[k])}" for k in unknown)
+            arena = [k for k in unknown if k in ARENA_KEYS]
+            hint = (
+                f" ({', '.join(arena)}: an arena field, for ArenaConfig or the env's keywords)"
+                if arena
+                else ""
+            )
+            raise UnknownOptionError(
+                f"EnvOptions({given}) is invalid: no such option{'s' if len(unknown) > 1 else ''}"
+                f"{hint}; allowed: {', '.join(OPTION_KEYS)}"
+            )
+        init(self, *args, **kwargs)
+
+    return checked
+
+
+setattr(EnvOptions, "__init__", _refuse_unknown_fields(EnvOptions.__init__))  # noqa: B010
 
 
 def agent_names(config: ArenaConfig, scheme: str = "index") -> list[str]:

@@ -15,12 +15,14 @@ when an env is made (this layer imports nothing of `tavc_agents`).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium
 import pettingzoo
 
-from tavc_env.scenarios import SCENARIOS
+from tavc_env.scenarios import SCENARIOS, Scenario
+from tavc_env.validation import shown
 
 REGISTRY_ID = "tavc/tavc_arena-v1"
 REGISTRY_ID_V0 = "tavc/tavc_arena-v0"
@@ -34,6 +36,37 @@ SINGLE_ROBOT_IDS: Mapping[str, Mapping[str, Any]] = {
 (`tavc_env.scenarios`), under the id it has in PettingZoo's registry."""
 
 
+@dataclass(frozen=True)
+class ScenarioEntryPoint:
+    """What a scenario's PettingZoo id builds: that scenario's env (`view`: "parallel" or "aec").
+    PettingZoo passes the id's own `scenario=` overridden by the caller's, so a `scenario=` that
+    names another scenario would build it under this id: it is refused, naming the id to use."""
+
+    id: str
+    scenario: str
+    view: str
+
+    def __call__(self, **kwargs: Any) -> Any:
+        from tavc_env import scenarios
+
+        given = kwargs.pop("scenario", self.scenario)
+        own = SCENARIOS[self.scenario]
+        if not (given == self.scenario or (isinstance(given, Scenario) and given == own)):
+            name = given.name if isinstance(given, Scenario) else given
+            other = SCENARIOS.get(name) if isinstance(name, str) else None
+            use = (
+                f"; for scenario {name!r} use the id {other.id!r}"
+                if other is not None and (isinstance(given, str) or given == other)
+                else ""
+            )
+            raise ValueError(
+                f"scenario = {shown(given)} is invalid for the id {self.id!r}, which is scenario "
+                f"{self.scenario!r}; allowed: {self.scenario!r} or no scenario argument{use}"
+            )
+        make = scenarios.parallel_env if self.view == "parallel" else scenarios.env
+        return make(self.scenario, **kwargs)
+
+
 def register() -> None:
     """Register both views of both versions of the arena, and of every scenario of
     `tavc_env.scenarios.SCENARIOS` (`tavc/<name>-v<version>`), once (none on PettingZoo versions
@@ -42,17 +75,23 @@ def register() -> None:
     register_single_robot_envs(SINGLE_ROBOT_IDS)
     if not hasattr(pettingzoo, "register"):
         return
-    entries: list[tuple[str, str, dict[str, Any]]] = [
-        (name, module, {}) for name, module in _ENTRY_POINTS.items()
-    ]
-    entries += [(s.id, "tavc_env.scenarios", {"scenario": s.name}) for s in SCENARIOS.values()]
-    for name, module, kwargs in entries:
+    for name, module in _ENTRY_POINTS.items():
         if name not in pettingzoo.parallel_registry:
-            pettingzoo.register(
-                "parallel", name, entry_point=f"{module}:parallel_env", kwargs=dict(kwargs)
-            )
+            pettingzoo.register("parallel", name, entry_point=f"{module}:parallel_env")
         if name not in pettingzoo.aec_registry:
-            pettingzoo.register("aec", name, entry_point=f"{module}:env", kwargs=dict(kwargs))
+            pettingzoo.register("aec", name, entry_point=f"{module}:env")
+    for s in SCENARIOS.values():  # the id's scenario is bound: another one is refused
+        for view, registry in (
+            ("parallel", pettingzoo.parallel_registry),
+            ("aec", pettingzoo.aec_registry),
+        ):
+            if s.id not in registry:
+                pettingzoo.register(
+                    view,
+                    s.id,
+                    entry_point=ScenarioEntryPoint(s.id, s.name, view),
+                    kwargs={"scenario": s.name},
+                )
 
 
 def register_single_robot_envs(ids: Mapping[str, Mapping[str, Any]]) -> None:

@@ -390,7 +390,7 @@ def check_figure_only(
 
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
-NOT_STUDIES = ("arena_runs", "row_check", "profile_env", "regime_cell")
+NOT_STUDIES = ("arena_analysis", "arena_runs", "profile_env", "regime_cell")
 """benchmarks/ modules that are not study programs: the modules the studies share, and two
 scripts of their own (a run to profile, one regime-map cell rerun)."""
 

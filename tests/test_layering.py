@@ -53,11 +53,11 @@ LAYERS: list[tuple[int, str]] = [
     (9, "tavc_agents.cli"),
     (9, "tavc_agents.__main__"),  # `python -m tavc_agents`: the cli
     (9, "tavc_agents"),  # the package's __init__ (a docstring)
-    (10, "benchmarks.arena_runs"),  # what several studies share, beside them
-    (10, "benchmarks.row_check"),
+    (10, "benchmarks.arena_analysis"),  # what several studies share, beside them
+    (10, "benchmarks.arena_runs"),
     (11, "benchmarks"),  # the study programs: they import the package and the shared modules
 ]
-SHARED_BESIDE_STUDIES = ("benchmarks.arena_runs", "benchmarks.row_check")
+SHARED_BESIDE_STUDIES = ("benchmarks.arena_analysis", "benchmarks.arena_runs")
 # physics, task rules and the twin's engine: must not know gymnasium or PettingZoo
 ENGINE_ONLY = ("tavc_env.engine", "tavc_env.twin.tables", "tavc_env.twin.engine")
 

@@ -39,7 +39,7 @@ COMMANDS = {
     "trial": "run one trial and print a summary",
     "record": "record a trial to an animated GIF (or its last frame to a PNG)",
     "plot": "plot saved results (no rerun): timeline, q, interference, curve",
-    "evaluate": "score an agent on the scenario suite's evaluation protocol (IQM, 95 % CI)",
+    "evaluate": "score an agent on the scenario suite's evaluation protocol (IQM with its interval)",
 }
 
 
@@ -278,18 +278,32 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 
 def _imported(spec: str) -> Any:
-    """The object `MODULE:NAME` names (a policy of your own), imported; a ValueError otherwise."""
+    """The object `spec` names, `FILE.py:NAME` or `MODULE:NAME` (a policy of your own), loaded;
+    a ValueError naming what is wrong otherwise."""
     import importlib
+    import importlib.util
 
-    module_name, sep, attr = spec.partition(":")
-    if not sep or not module_name or not attr:
+    where, sep, attr = spec.rpartition(":")
+    if not sep or not where or not attr:
         raise ValueError(
-            f"--policy {spec!r} is invalid; allowed: MODULE:NAME, e.g. my_pkg.agents:policy"
+            f"--policy {spec!r} is invalid; allowed: FILE.py:NAME or MODULE:NAME, e.g. "
+            "my_agent.py:policy"
         )
     try:
-        found = getattr(importlib.import_module(module_name), attr)
-    except (ImportError, AttributeError) as error:
-        raise ValueError(f"--policy {spec!r} could not be imported: {error}") from error
+        if where.endswith(".py"):
+            path = Path(where)
+            if not path.is_file():
+                raise ValueError(f"--policy {spec!r}: {where} is not a file")
+            loaded = importlib.util.spec_from_file_location(path.stem, path)
+            assert loaded is not None and loaded.loader is not None
+            module = importlib.util.module_from_spec(loaded)
+            sys.modules[path.stem] = module  # (dataclasses and pickling look it up)
+            loaded.loader.exec_module(module)
+        else:
+            module = importlib.import_module(where)
+        found = getattr(module, attr)
+    except (ImportError, AttributeError, SyntaxError) as error:
+        raise ValueError(f"--policy {spec!r} could not be loaded: {error}") from error
     if not callable(found):
         raise ValueError(f"--policy {spec!r} is a {type(found).__name__}; allowed: a callable")
     return found
@@ -509,8 +523,8 @@ def parser() -> argparse.ArgumentParser:
     ev.add_argument(
         "--policy",
         default=None,
-        help="MODULE:NAME of a callable: policy(observations, infos) -> actions, or a Policy "
-        "factory taking an agent's name",
+        help="FILE.py:NAME or MODULE:NAME of a callable: policy(observations, infos) -> "
+        "actions, or a Policy factory taking an agent's name",
     )
     ev.add_argument(
         "--param", action="append", default=[], metavar="KEY=VALUE", help="allocator parameter"

@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -25,106 +25,22 @@ from tavc_agents.experiments.files import read_report
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.registry import REGISTRY
 from tavc_agents.experiments.runner import TrialResult, run_trial
-from tavc_agents.experiments.study import (
-    RESULTS_DIR,
-    StudySettings,
-    at_least,
-    positive,
-    refuse_invalid,
-)
 from tavc_agents.experiments.sweep import TrialSpec, run_sweep
 from tavc_agents.learners.network import READOUTS, declared_layers
 from tavc_agents.model import CompletionModel, load_model
 from tavc_agents.policy import Policy
 from tavc_env.safe_files import atomic_path
-from tavc_env.scenarios import SCENARIOS, Scenario, ScenarioEnv
+from tavc_env.scenarios import SCENARIOS, ScenarioEnv
 from tavc_env.validation import is_integer, is_number
 
 
 # -- the episodes and the metric --------------------------------------------------------------------
-@dataclass(frozen=True, kw_only=True)
-class EvaluationSettings(StudySettings):
-    """What every study of the suite's evaluation episodes takes: the scenarios, how many of their
-    evaluation seeds, and the episode length (the scenario's unless given)."""
-
-    min_seeds: ClassVar[int] = 1
-
-    scenarios: tuple[str, ...] = tuple(SCENARIOS)
-    """the scenarios (names in tavc_env.scenarios.SCENARIOS)"""
-    seeds: int | None = None
-    """evaluation seeds per scenario (default: all of the scenario's)"""
-    episode_h: float | None = None
-    """episode length, simulated hours (default: the scenario's)"""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        refuse_invalid(
-            self,
-            [
-                (
-                    "scenarios",
-                    len(self.scenarios) >= 1 and all(n in SCENARIOS for n in self.scenarios),
-                    f"one or more of {', '.join(SCENARIOS)}",
-                ),
-                (
-                    "seeds",
-                    self.seeds is None or at_least(self.seeds, self.min_seeds),
-                    f"None or >= {self.min_seeds}",
-                ),
-                ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
-            ],
-        )
-
-    @property
-    def seeds_text(self) -> str:
-        return "all" if self.seeds is None else str(self.seeds)
-
-    @property
-    def episode_text(self) -> str:
-        return "scenario's" if self.episode_h is None else str(float(self.episode_h))
-
-    def seeds_of(self, scenario: Scenario) -> tuple[int, ...]:
-        return scenario.eval_seeds if self.seeds is None else scenario.eval_seeds[: self.seeds]
-
-    def episode_s(self, scenario: Scenario) -> float:
-        return scenario.episode_s if self.episode_h is None else float(self.episode_h) * 3600.0
-
-
 def value_per_hour(result: TrialResult) -> float:
     """The suite's metric of one episode: delivered value (w at delivery) per simulated hour."""
     return float(sum(result.delivery_value)) / (result.end_s / 3600.0)
 
 
 # -- normalisation and aggregation ---------------------------------------------------------------
-@dataclass(frozen=True, kw_only=True)
-class ScoredSettings(StudySettings):
-    """What a study that scores episodes against the scenarios' references takes: the committed
-    references, and the bootstrap's resamples and seed."""
-
-    references: Path = RESULTS_DIR / "scenarios" / "references.json"
-    """the scenarios' committed references (random, stay, optimum) that normalise the scores"""
-    resamples: int = 10_000
-    """bootstrap resamples of every interval"""
-    seed: int = 0
-    """the bootstrap's generator seed"""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        refuse_invalid(
-            self,
-            [
-                ("resamples", at_least(self.resamples, 100), "an integer >= 100"),
-                ("seed", at_least(self.seed, 0), "an integer >= 0"),
-                (
-                    "references",
-                    Path(self.references).is_file(),
-                    "the scenarios study's references.json (python benchmarks/scenarios.py "
-                    "--stage measure)",
-                ),
-            ],
-        )
-
-
 def iqm(scores: Sequence[float]) -> float:
     """The interquartile mean: the mean of the middle half (scipy's 25 % trimmed mean)."""
     return float(stats.trim_mean(np.asarray(scores, dtype=float), 0.25))
@@ -487,6 +403,11 @@ def _episode_s(scenario: str, episode_h: float | None) -> float:
     return SCENARIOS[scenario].episode_s if episode_h is None else float(episode_h) * 3600.0
 
 
+def episode_key(scenario: str, allocator: str, seed: int) -> str:
+    """The trial key of evaluation episode `seed` of `scenario` for `allocator`."""
+    return f"{scenario}__{allocator}__{seed}"
+
+
 def episode_spec(
     scenario: str, seed: int, allocator: str, kwargs: Mapping[str, Any], episode_h: float | None
 ) -> TrialSpec:
@@ -499,7 +420,7 @@ def episode_spec(
         kw["model"] = load_model(s.model).with_values(values).to_dict()
     episode_s = _episode_s(scenario, episode_h)
     return TrialSpec(
-        key=f"{scenario}__{allocator}__{seed}",
+        key=episode_key(scenario, allocator, seed),
         allocator=allocator,
         allocator_kwargs=kw,
         seed=seed,

@@ -26,7 +26,19 @@ into one shared-memory block and answer through the pipe with a few bytes (the r
 episodes, when there are any, are pickled): a round trip of one step's arrays takes about a third
 of the time it takes pickled (`benchmarks/vector_throughput.py` measures both). An exception in a
 worker is raised in this process as `WorkerError` with the worker's traceback, and the batch is
-closed; workers exit when this process closes them or dies (their pipe ends).
+closed.
+
+**Bounds and life cycle.** `n_envs` is at most `MAX_ENVS` (4096: about 0.2 MB and 2 ms to build
+per `dahl2004` arena, so about 0.8 GB and 8 s, far more than two cores step usefully) and
+`workers` at most `MAX_WORKERS` (256); more is refused before anything is built. Every wait on
+the workers (building their arenas, `reset`, `step`) is bounded by `timeout_s` (default 600 s;
+None waits forever): a worker that does not answer in time is named in a `WorkerTimeoutError`,
+and the batch is closed (workers ended, shared memory freed). Workers exit when this process
+closes them, and within about a second when it dies however it dies (even by SIGKILL, even while
+they are still building their arenas): each watches its parent (its parent pid changes when the
+parent ends). The shared-memory block is unlinked by `close`, by a finalizer that runs when the
+batch is collected or this process exits, and, after a SIGKILL of this process, by
+multiprocessing's resource tracker once the workers are gone.
 """
 
 from __future__ import annotations
@@ -34,7 +46,10 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import multiprocessing.connection
+import os
 import pickle
+import threading
+import time
 import traceback
 import weakref
 from collections.abc import Callable, Mapping, Sequence
@@ -48,14 +63,27 @@ from gymnasium.vector import AutoresetMode
 
 from tavc_env.arena import make_env as arena_env
 from tavc_env.env import ArenaEnv
-from tavc_env.validation import is_integer, require
+from tavc_env.validation import is_integer, is_number, require
 
 Arrays = dict[str, Any]  # field -> stacked array (and "final_info" -> such a dict)
 EnvFactory = Callable[..., ArenaEnv[Any]]
 
+MAX_ENVS = 4096
+"""The most arenas a batch holds (see the module's docstring)."""
+MAX_WORKERS = 256
+"""The most worker processes a batch starts."""
+DEFAULT_TIMEOUT_S = 600.0
+"""How long a batch waits for a worker's answer by default (building its arenas, a reset or a
+step; a cold numba cache compiles the controller within the first)."""
+_WATCH_S = 0.25  # how often a worker checks that its parent is alive
+
 
 class WorkerError(RuntimeError):
     """An exception raised in a worker process; its message carries the worker's traceback."""
+
+
+class WorkerTimeoutError(WorkerError):
+    """A worker that did not answer within `timeout_s`; the batch was closed."""
 
 
 class BatchedStep(NamedTuple):
@@ -168,6 +196,30 @@ def _views(buffer: Any, layout: Layout, n_envs: int) -> dict[str, np.ndarray]:
     return views
 
 
+def _watch_parent(parent_pid: int) -> None:
+    """In a worker: end this process as soon as the process that made the batch (`parent_pid`)
+    is gone, whatever this process is doing (building arenas, stepping). The parent's death
+    changes this process's parent pid (it is adopted by init or a subreaper); under `forkserver`
+    the parent is the fork server, which ends when the batch's process does. A daemon thread."""
+    first = os.getppid()
+
+    def watch() -> None:
+        while True:
+            time.sleep(_WATCH_S)
+            gone = os.getppid() != first
+            if not gone:
+                try:
+                    os.kill(parent_pid, 0)
+                except ProcessLookupError:
+                    gone = True
+                except OSError:  # EPERM: it exists
+                    pass
+            if gone:
+                os._exit(1)  # no clean-up: nobody is left to answer; the mapping goes with us
+
+    threading.Thread(target=watch, name="tavc-parent-watch", daemon=True).start()
+
+
 def _serve(
     connection: multiprocessing.connection.Connection,
     parent_end: multiprocessing.connection.Connection | None,
@@ -175,11 +227,15 @@ def _serve(
     env_kwargs: Mapping[str, Any],
     arenas: tuple[int, int],
     block: tuple[str, Layout, int],
+    parent_pid: int | None = None,
 ) -> None:
     """A worker: build arenas `arenas[0]` to `arenas[1] - 1`, then answer reset/step/close
-    messages until told to close or until the parent's end of the pipe closes (the parent died).
-    Results go into the worker's rows of the shared block `block` (name, layout, arenas); only
-    the rows of finished episodes travel through the pipe."""
+    messages until told to close or until the parent's end of the pipe closes (the parent died);
+    with `parent_pid`, a thread ends the worker at once when that process dies. Results go into
+    the worker's rows of the shared block `block` (name, layout, arenas); only the rows of
+    finished episodes travel through the pipe."""
+    if parent_pid is not None:
+        _watch_parent(parent_pid)
     if parent_end is not None:
         parent_end.close()  # a forked copy of the parent's end would keep the pipe open forever
     group: ArenaGroup | None = None
@@ -224,15 +280,33 @@ class _Workers:
         spans: Sequence[tuple[int, int]],
         layout: Layout,
         start_method: str | None,
+        timeout_s: float | None = None,
     ) -> None:
         context: Any = multiprocessing.get_context(start_method)  # typeshed's lacks Process
         n_envs = spans[-1][1]
         size = sum(v.nbytes for v in _views(None, layout, n_envs).values())
+        self.timeout_s = timeout_s
         self.memory = shared_memory.SharedMemory(create=True, size=max(size, 1))
         self.views = _views(self.memory.buf, layout, n_envs)
         self.connections: list[multiprocessing.connection.Connection] = []
         self.processes: list[multiprocessing.process.BaseProcess] = []
         self.closed = False
+        try:
+            self._start(context, make_env, env_kwargs, spans, layout, n_envs)
+            self.gather("build its arenas")  # every worker built them (or its error is raised)
+        except BaseException:  # Ctrl-C included: no worker or shared block is left behind
+            self.close(polite=False)
+            raise
+
+    def _start(
+        self,
+        context: Any,
+        make_env: EnvFactory,
+        env_kwargs: Mapping[str, Any],
+        spans: Sequence[tuple[int, int]],
+        layout: Layout,
+        n_envs: int,
+    ) -> None:
         for span in spans:
             parent_end, child_end = context.Pipe()
             process = context.Process(
@@ -244,6 +318,7 @@ class _Workers:
                     dict(env_kwargs),
                     span,
                     (self.memory.name, layout, n_envs),
+                    os.getpid(),
                 ),
                 daemon=True,  # ended with this process if it exits without closing us
             )
@@ -251,7 +326,6 @@ class _Workers:
             try:
                 process.start()
             except (pickle.PicklingError, AttributeError, TypeError) as exc:
-                self.close(polite=False)  # the workers started so far, and the shared block
                 raise ValueError(
                     f"make_env = {make_env!r} is invalid with start method "
                     f"{context.get_start_method()!r}; allowed: a module-level function (and "
@@ -260,49 +334,80 @@ class _Workers:
             finally:
                 child_end.close()
             self.processes.append(process)
-        self.gather()  # every worker built its arenas (or its error is raised here)
 
     def send(self, messages: Sequence[tuple[str, Any]]) -> None:
-        for connection, message in zip(self.connections, messages):
-            connection.send(message)
+        try:
+            for connection, message in zip(self.connections, messages):
+                connection.send(message)
+        except OSError as exc:  # a worker is gone: its error (or its end) is what gather reports
+            self.close(polite=False)
+            raise WorkerError(f"a worker process ended unexpectedly ({exc!r})") from None
 
-    def gather(self) -> list[Any]:
-        """Every worker's answer, in order; the first worker error closes all and is raised."""
-        answers, errors = [], []
-        for w, connection in enumerate(self.connections):
-            try:
-                status, payload = connection.recv()
-            except (EOFError, OSError) as exc:
-                status, payload = "error", f"the worker process ended unexpectedly ({exc!r})"
-            if status == "error":
-                errors.append(f"worker {w} of {len(self.connections)} failed:\n{payload}")
-            answers.append(payload)
+    def gather(self, doing: str = "answer") -> list[Any]:
+        """Every worker's answer, in order. A worker error, or a worker that does not answer
+        within `timeout_s` (`doing` says what it was asked to do), closes all and is raised."""
+        n = len(self.connections)
+        deadline = None if self.timeout_s is None else time.monotonic() + self.timeout_s
+        answers: list[Any] = [None] * n
+        errors: list[str] = []
+        waiting = dict(enumerate(self.connections))
+        while waiting:
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            ready = multiprocessing.connection.wait(list(waiting.values()), timeout=left)
+            if not ready:
+                late = ", ".join(
+                    f"worker {w} of {n} (pid {self.processes[w].pid})" for w in sorted(waiting)
+                )
+                self.close(polite=False)
+                raise WorkerTimeoutError(
+                    "".join(f"{e}\n" for e in errors)
+                    + f"{late} did not {doing} within timeout_s = {self.timeout_s} s; the batch "
+                    "is closed (its workers ended, its shared memory freed); allowed: a larger "
+                    "timeout_s, or None to wait without a bound"
+                )
+            for w in [w for w, c in waiting.items() if c in ready]:
+                try:
+                    status, payload = waiting.pop(w).recv()
+                except (EOFError, OSError) as exc:
+                    status, payload = "error", f"the worker process ended unexpectedly ({exc!r})"
+                if status == "error":
+                    errors.append(f"worker {w} of {n} failed:\n{payload}")
+                answers[w] = payload
         if errors:
             self.close(polite=False)
             raise WorkerError("\n".join(errors))
         return answers
 
     def close(self, polite: bool = True) -> None:
+        """End the workers (asked first if `polite`, a frozen one terminated, then killed) and
+        free the shared block; closing again does nothing."""
         if self.closed:
             return
         self.closed = True
-        if polite:
+        try:
+            if polite:
+                for connection in self.connections:
+                    try:
+                        connection.send(("close", None))
+                        if connection.poll(5.0):  # a frozen worker does not answer
+                            connection.recv()
+                    except (OSError, EOFError):
+                        pass
+            for process in self.processes:
+                process.join(timeout=5 if polite else 0.5)
+                if process.is_alive():
+                    process.terminate()
+                    process.join(timeout=2)
+                if process.is_alive():  # SIGTERM ignored or blocked
+                    process.kill()
+                    process.join(timeout=2)
+        finally:
             for connection in self.connections:
-                try:
-                    connection.send(("close", None))
-                    connection.recv()
-                except (OSError, EOFError):
-                    pass
-        for process in self.processes:
-            process.join(timeout=5 if polite else 0.5)
-            if process.is_alive():
-                process.terminate()
-                process.join(timeout=5)
-        for connection in self.connections:
-            connection.close()
-        self.views.clear()  # no view may outlive the mapping
-        self.memory.close()
-        self.memory.unlink()
+                connection.close()
+            self.views.clear()  # no view may outlive the mapping
+            self.memory.close()
+            with contextlib.suppress(FileNotFoundError):
+                self.memory.unlink()
 
 
 class BatchedArenaEnv:
@@ -319,6 +424,11 @@ class BatchedArenaEnv:
             (a module-level function), as multiprocessing sends it by name.
         start_method: multiprocessing's (`fork`, `spawn`, `forkserver`); None: the platform's
             default.
+        timeout_s: the longest wait, in seconds, for the workers to build their arenas and to
+            answer each `reset` and `step` (default 600); a worker that does not answer in time
+            is a `WorkerTimeoutError` naming it, and the batch is closed. None: no bound.
+
+    `n_envs` is at most `MAX_ENVS` and `workers` at most `MAX_WORKERS`.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.SAME_STEP}
@@ -331,13 +441,26 @@ class BatchedArenaEnv:
         env_kwargs: Mapping[str, Any] | None = None,
         make_env: EnvFactory = arena_env,
         start_method: str | None = None,
+        timeout_s: float | None = DEFAULT_TIMEOUT_S,
     ) -> None:
-        require(is_integer(n_envs) and n_envs >= 1, "n_envs", n_envs, "an integer >= 1")
         require(
-            is_integer(workers) and 0 <= workers <= n_envs,
+            is_integer(n_envs) and 1 <= n_envs <= MAX_ENVS,
+            "n_envs",
+            n_envs,
+            f"an integer in [1, {MAX_ENVS}] (MAX_ENVS)",
+        )
+        require(
+            is_integer(workers) and 0 <= workers <= min(n_envs, MAX_WORKERS),
             "workers",
             workers,
-            f"an integer in [0, n_envs = {n_envs}] (0: every arena in this process)",
+            f"an integer in [0, min(n_envs = {n_envs}, {MAX_WORKERS})] (0: every arena in this "
+            "process; MAX_WORKERS)",
+        )
+        require(
+            timeout_s is None or (is_number(timeout_s) and timeout_s > 0),
+            "timeout_s",
+            timeout_s,
+            "None (no bound) or a finite number of seconds > 0",
         )
         require(
             env_kwargs is None or isinstance(env_kwargs, Mapping),
@@ -389,7 +512,8 @@ class BatchedArenaEnv:
         if workers == 0:
             self._local = ArenaGroup(make_env, kwargs, self.n_envs)
         else:
-            self._workers = _Workers(make_env, kwargs, self._spans, layout, start_method)
+            timeout = None if timeout_s is None else float(timeout_s)
+            self._workers = _Workers(make_env, kwargs, self._spans, layout, start_method, timeout)
             self._finalizer = weakref.finalize(self, self._workers.close)
         self.closed = False
 
@@ -466,9 +590,9 @@ class BatchedArenaEnv:
             out = local(arguments[0])
             return out, [out.pop("final")] if "final" in out else []
         assert self._workers is not None
-        self._workers.send([(command, argument) for argument in arguments])
         try:
-            finals = self._workers.gather()
+            self._workers.send([(command, argument) for argument in arguments])
+            finals = self._workers.gather(f"answer {command}()")
         except WorkerError:
             self.closed = True
             raise

@@ -13,7 +13,7 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 
-from tavc_env.config import ArenaConfig
+from tavc_env.config import JAM_WINDOW_S, ArenaConfig
 from tavc_env.engine.base import (
     Advance,
     ScheduleEntry,
@@ -40,7 +40,6 @@ from tavc_env.engine.navigation import (
 from tavc_env.engine.tasks import Phase, TaskCycle
 from tavc_env.engine.world import World
 
-JAM_WINDOW_S = 600.0  # default: ten typical tasks of the shipped arenas without any progress
 JAM_MOTION_M = 1.0  # ... while no moving robot got this far from where the window began
 
 

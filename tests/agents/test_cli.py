@@ -45,7 +45,7 @@ def test_console_script_is_installed_and_help_lists_every_command() -> None:
     assert "reproduce" not in done.stdout and "bench" not in done.stdout  # studies are programs
 
 
-@pytest.mark.parametrize("command", ["trial", "record", "plot"])
+@pytest.mark.parametrize("command", ["trial", "record", "plot", "evaluate"])
 def test_every_command_has_help(command: str) -> None:
     code, out, _ = run([command, "--help"])
     assert code == 0 and f"usage: tavc {command}" in out

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 import interference as study
-from tavc_agents.analysis.interference import RUN_FIELDS
+from arena_analysis import RUN_FIELDS
 
 ROOT = Path(__file__).resolve().parents[2]
 COMMITTED = ROOT / "benchmarks" / "results"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -47,6 +48,32 @@ def test_a_short_run_scores_every_allocator_on_every_scenario(tmp_path: Path) ->
     # stay never leaves the crowded start: below random there, by the references
     assert summary["stay"]["bad_start"]["iqm"] < 0.0
     assert "tavc/bad_start-v0" in outcome.text
+
+
+def test_a_submitted_row_and_a_plugin_join_the_table(tmp_path: Path) -> None:
+    """The researcher's path: a PettingZoo-style policy evaluated on the leaderboard's episodes,
+    its row taken in beside the allocators; a row of other episodes is refused."""
+    from tavc_agents import evaluate
+
+    def stay(observations: Any, infos: Any) -> dict[str, int]:
+        return {a: int(i["circuit"]) for a, i in infos.items() if i["action_required"]}
+
+    scenarios = ("bad_start", "breakdowns")
+    row = evaluate(stay, scenarios, seeds=2, episode_h=0.5, name="my stay")
+    path = row.save(tmp_path / "row.json")
+    out = tmp_path / "board"
+    settings = study.Settings(quick=True, scenarios=scenarios, workers=1, out=out, rows=(path,))
+    outcome = study.run(settings)
+    summary = json.loads((out / "leaderboard.json").read_text())["summary"]
+    assert "| my stay (submitted) |" in outcome.text
+    # the same decisions on the same episodes: the submitted row scores exactly as `stay`
+    mine, stay_row = summary["my stay (submitted)"], summary["stay"]
+    assert {k: v["iqm"] for k, v in mine.items()} == {k: v["iqm"] for k, v in stay_row.items()}
+    short = evaluate(stay, scenarios, seeds=2, episode_h=0.25).save(tmp_path / "short.json")
+    with pytest.raises(ValueError, match=r"was run with episode_h = 0\.25"):
+        study.run(study.Settings(quick=True, scenarios=scenarios, out=out, rows=(short,)))
+    with pytest.raises(ValueError, match="plugins"):
+        study.Settings(plugins=("no_such_allocator",))
 
 
 def test_settings_refuse_a_missing_reference_and_one_seed(tmp_path: Path) -> None:

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import liveness as study
-from tavc_agents.experiments.arenas import (
+from liveness import (
     ROBOTS,
     arena_config,
     draw_arena,

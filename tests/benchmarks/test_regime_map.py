@@ -11,7 +11,7 @@ import pytest
 
 import arena_runs
 import regime_map as rm
-from tavc_agents.analysis.elasticity import Elasticity
+from arena_analysis import Elasticity
 
 
 def test_bad_settings_are_refused_naming_the_field_and_what_is_allowed() -> None:

@@ -10,6 +10,9 @@
   checked against the example's own (its `train` parameters and `RunOptions`).
 - BenchMARL's command line (`python -m tavc_env.adapters.benchmarl task=tavc/<task> ...`): its
   task is one of the shipped YAML files; BenchMARL itself (a venv of its own) is not needed.
+- `tavc evaluate` lines run for real on one evaluation episode of each scenario cut to 0.1 h
+  (`--seeds 1 --episode-h 0.1` appended; the whole suite takes minutes), in the same working
+  folder, so the row a block writes is the row the block's next command reads.
 - Installs, the test suite and `mkdocs serve` are what CI itself runs; they are not repeated.
 """
 
@@ -73,7 +76,12 @@ def study_of(words: list[str]) -> tuple[str, list[str]] | None:
 
 
 @pytest.mark.parametrize("block", BASH, ids=[b.where for b in BASH])
-def test_documented_commands_work_as_written(block: Block, tmp_path: Path) -> None:
+def test_documented_commands_work_as_written(
+    block: Block, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    for name in ("benchmarks", "docs"):  # as from a clone, writing only into tmp_path
+        (tmp_path / name).symlink_to(ROOT / name)
+    monkeypatch.chdir(tmp_path)  # a study's file options resolve where the commands ran
     for words in commands(block):
         if words[0] in SKIPPED or words[:3] == ["python", "-m", "pytest"]:
             continue
@@ -99,10 +107,8 @@ def test_documented_commands_work_as_written(block: Block, tmp_path: Path) -> No
                 assert script.is_file(), f"{block.where}: {script} does not exist"
             continue
         assert words[0] == "tavc", f"{block.where}: no rule for documented command {words}"
-        if not (tmp_path / "benchmarks").exists():
-            # as from a clone (committed results by their paths), writing only into tmp_path
-            (tmp_path / "benchmarks").symlink_to(ROOT / "benchmarks")
-        command = [sys.executable, "-m", "tavc_agents.cli", *words[1:]]
+        quick = ["--seeds", "1", "--episode-h", "0.1"] if words[1:2] == ["evaluate"] else []
+        command = [sys.executable, "-m", "tavc_agents.cli", *words[1:], *quick]
         done = subprocess.run(
             command, cwd=tmp_path, capture_output=True, text=True, timeout=300, check=False
         )

@@ -35,9 +35,9 @@ from tavc_agents.experiments.provenance import (
     PROVENANCE_FILE,
     PROVENANCE_MAX_BYTES,
     load_provenance,
-    run_recorded,
 )
 from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.study import run_recorded
 from tavc_agents.experiments.sweep import TRIALS, TrialSpec
 from tests.damage import DAMAGES, NOT_FILES, no_hang, plant
 from tests.fuzz.strategies import fuzz_settings

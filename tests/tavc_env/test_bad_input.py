@@ -684,3 +684,15 @@ def test_a_numpy_integer_is_a_breakdown_robot_index() -> None:
     obs, _ = env.reset(seed=0)
     _, _, _, _, infos = env.step(_all(obs))
     assert infos["robot_5"]["broken"]
+
+
+@pytest.mark.parametrize("options", ["x", 3, ["a"], ("max_cycles", 5)], ids=repr)
+@pytest.mark.parametrize("view", ["parallel", "aec"])
+def test_reset_options_that_are_not_a_mapping_are_refused(options: Any, view: str) -> None:
+    """issue 35: `reset(options='x')` was silently ignored."""
+    env = tavc_env.parallel_env() if view == "parallel" else tavc_env.env()
+    with pytest.raises(
+        ValueError, match=rf"^options = {re.escape(repr(options))} is invalid; allowed: None or a"
+    ):
+        env.reset(seed=0, options=options)
+    env.reset(seed=0, options={})  # a mapping (or None) is taken

@@ -120,3 +120,17 @@ def test_the_env_reads_its_options() -> None:
     assert env.options.max_cycles == 5
     with pytest.raises(ValueError, match="max_cycles = 0"):
         env.max_cycles = 0
+
+
+def test_an_unknown_field_is_named_with_every_allowed_one() -> None:
+    """issue 35: `EnvOptions(bogus=1)` was a bare TypeError ("unexpected keyword argument")."""
+    for make in (lambda **k: EnvOptions(**k), lambda **k: EnvOptions().replace(**k)):
+        with pytest.raises(TypeError) as error:
+            make(bogus=1)
+        assert isinstance(error.value, ValueError)  # the package's refusals are ValueErrors
+        text = str(error.value)
+        assert text.startswith("EnvOptions(bogus=1) is invalid: no such option; allowed: ")
+        assert "max_cycles, max_sim_time_s" in text and "agent_names" in text
+    with pytest.raises(ValueError, match=r"\(dt: an arena field, for ArenaConfig"):
+        EnvOptions(dt=0.1)  # type: ignore[call-arg]
+    assert EnvOptions(max_cycles=5).max_cycles == 5

@@ -152,6 +152,24 @@ def test_scenario_envs_refuse_arena_overrides_and_unknown_names() -> None:
         ScenarioEnv("no_such_scenario")
 
 
+@pytest.mark.parametrize("view", ["parallel", "aec"])
+def test_a_scenario_argument_that_contradicts_the_id_is_refused(view: str) -> None:
+    """issue 35: `pettingzoo.make('parallel', 'tavc/dahl2004-v0', scenario='bad_start')` built
+    bad_start under the dahl2004 id."""
+    with pytest.raises(ValueError) as error:
+        pettingzoo.make(view, "tavc/dahl2004-v0", scenario="bad_start")
+    assert str(error.value) == (
+        "scenario = 'bad_start' is invalid for the id 'tavc/dahl2004-v0', which is scenario "
+        "'dahl2004'; allowed: 'dahl2004' or no scenario argument; for scenario 'bad_start' use "
+        "the id 'tavc/bad_start-v0'"
+    )
+    with pytest.raises(ValueError, match=r"^scenario = 'nowhere' is invalid for the id"):
+        pettingzoo.make(view, "tavc/passing-v0", scenario="nowhere")
+    same = pettingzoo.make(view, "tavc/bad_start-v0", scenario="bad_start")  # agrees: taken
+    arena = same.unwrapped if view == "aec" else same
+    assert arena.scenario.name == "bad_start"
+
+
 def test_a_scenario_whose_first_profile_is_not_its_arena_values_is_refused() -> None:
     with pytest.raises(ValueError, match="profiles\\[0\\]"):
         Scenario(

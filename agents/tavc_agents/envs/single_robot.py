@@ -13,7 +13,7 @@ also pickles at any point (the arena replays its episode, DESIGN.md section 2.3)
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium
@@ -90,6 +90,12 @@ class SingleRobotEnv(gymnasium.Env[np.ndarray, int]):
             "seed",
             seed,
             "None or an integer >= 0 (int or numpy integer; not bool, not float)",
+        )
+        require(
+            options is None or isinstance(options, Mapping),
+            "options",
+            options,
+            "None or a mapping (this env takes no reset options)",
         )
         seed = None if seed is None else int(seed)
         super().reset(seed=seed)

@@ -20,6 +20,7 @@ import contextlib
 import errno
 import fcntl
 import os
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -130,10 +131,21 @@ def forget_inherited() -> None:
 
 def _lock(folder: Path) -> int:
     lock = folder / LOCK_FILE
-    try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    allowed = f"allowed: a regular file (remove {lock} and run again)"
+    try:  # O_NONBLOCK: opening a FIFO or a device found there must not wait
+        fd = os.open(
+            lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK, 0o644
+        )
     except OSError as error:
+        if error.errno == errno.ELOOP:  # O_NOFOLLOW met a symbolic link
+            raise FolderError(f"cannot lock {lock}: it is a symbolic link; {allowed}") from None
+        if error.errno == errno.EISDIR:
+            raise FolderError(f"cannot lock {lock}: it is a folder; {allowed}") from None
         raise FolderError(f"cannot write in the output folder {folder}: {_reason(error)}") from None
+    kind = os.fstat(fd).st_mode
+    if not stat.S_ISREG(kind):  # a FIFO or a device: no pid can be written in it
+        os.close(fd)
+        raise FolderError(f"cannot lock {lock}: it is {_kind(kind)}, not a regular file; {allowed}")
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as error:
@@ -145,9 +157,30 @@ def _lock(folder: Path) -> int:
             f"{folder} is being written by another sweep (pid {holder} holds {lock}); allowed: "
             "wait for it to end, or another output folder"
         ) from None
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    try:  # the pid is a hint for a refused second sweep; writing it can fail on a full disk
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    except OSError as error:
+        os.close(fd)  # releases the lock
+        raise FolderError(
+            f"cannot write the lock file {lock}: {_reason(error)}; allowed: a folder on a file "
+            "system with room to write"
+        ) from None
     return fd
+
+
+def _kind(mode: int) -> str:
+    """What a file that is not a regular one is, for a message."""
+    for test, name in (
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISDIR, "a folder"),
+    ):
+        if test(mode):
+            return name
+    return "not a regular file"
 
 
 def _reason(error: OSError) -> str:

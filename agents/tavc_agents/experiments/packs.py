@@ -57,7 +57,7 @@ from tavc_agents.experiments.files import (
     write_text,
 )
 from tavc_agents.experiments.folders import hold_folder
-from tavc_agents.experiments.runner import TrialResult
+from tavc_agents.experiments.trial_result import TrialResult
 from tavc_env.safe_files import kind_of, parse_json, sync_folder
 
 PACK = "pack.jsonl"

@@ -16,14 +16,12 @@ import platform
 import stat
 import subprocess
 import sys
-import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
 from typing import Any, TypeVar
 
 from tavc_agents.experiments.files import MIB, CorruptFileError, kind_of, read_json, write_text
-from tavc_agents.experiments.sweep import JobKind, run_jobs
 
 PROVENANCE_FILE = "provenance.json"
 PROVENANCE_MAX_BYTES = 1 * MIB  # a saved one is about 1 KiB
@@ -138,7 +136,7 @@ def load_provenance(folder: str | Path) -> dict[str, Any] | None:
     return data
 
 
-def _replaceable_provenance(folder: Path) -> CorruptFileError | None:
+def replaceable_provenance(folder: Path) -> CorruptFileError | None:
     """Check `folder`'s provenance before any job runs: None if it is absent or reads; the error
     if it is a damaged regular file (a run replaces it with its own); raised if it is anything
     else (a folder, a FIFO, a link, a device), which a run cannot replace without deleting it."""
@@ -165,76 +163,3 @@ def save_provenance(folder: str | Path, meta: Mapping[str, Any]) -> Path:
 
 J = TypeVar("J")
 R = TypeVar("R")
-
-
-def run_recorded(
-    jobs: Sequence[J],
-    kind: JobKind[J, R],
-    jobs_dir: str | Path,
-    report_dir: str | Path,
-    settings: Mapping[str, Any],
-    *,
-    workers: int | None = None,
-    backend: str = "local",
-    wall_of: Callable[[R], float] | None = None,
-    progress_bar: bool = True,
-) -> tuple[dict[str, R], dict[str, Any]]:
-    """Run (or resume) `jobs` in `jobs_dir` with a progress bar; return the results by key and the
-    provenance of the results.
-
-    When this run computes any job, the provenance is this run's (taken before the jobs start,
-    so it names the commit they ran from), with its wall time and how many jobs were run or
-    resumed, and it is saved in `report_dir`, also when the run is interrupted (Ctrl-C, SIGTERM,
-    a refused save) after computing some jobs (then marked `interrupted`). When every job is
-    resumed, the provenance saved there by the run that computed them is returned (or, if there
-    is none, this run's). A damaged provenance.json (garbled, not a JSON object) is named in one
-    line and replaced by this run's; one that is not a regular file (a folder, a FIFO, a link) is
-    refused before any job runs, as a run could only replace it by deleting it."""
-    started = time.perf_counter()
-    damaged = _replaceable_provenance(Path(report_dir))  # before any job runs
-    meta = run_metadata(settings=dict(settings))
-    finished: list[str] = []
-    resumed: list[str] = []
-    trial_wall = 0.0
-
-    def note(job: J, result: R, was_resumed: bool) -> None:
-        nonlocal trial_wall
-        if wall_of is not None:
-            trial_wall += wall_of(result)
-        finished.append(kind.key(job))
-        if was_resumed:
-            resumed.append(kind.key(job))
-
-    def counted(**extra: Any) -> dict[str, Any]:
-        counts: dict[str, Any] = dict(
-            wall_time_s=time.perf_counter() - started,
-            trials_resumed=len(resumed),
-            trials_run=len(finished) - len(resumed),
-            **extra,
-        )
-        if wall_of is not None:
-            counts["trial_wall_s_total"] = trial_wall
-        return {**meta, **counts}
-
-    try:
-        results = run_jobs(
-            jobs, kind, jobs_dir, workers, note, progress_bar=progress_bar, backend=backend
-        )
-    except BaseException:
-        # The jobs an interrupted run computed are saved; so is its provenance, so that a report
-        # rendered later from them names the commit and machine that made them.
-        if len(finished) > len(resumed):
-            try:
-                save_provenance(report_dir, counted(interrupted=True))
-            except Exception as error:  # the interruption is the news; this is one line beside it
-                print(f"provenance of the interrupted run not saved: {error}", file=sys.stderr)
-        raise
-    stored = None if damaged else load_provenance(report_dir)
-    if len(resumed) == len(jobs) and stored is not None:
-        return results, stored
-    meta = counted()
-    if len(resumed) < len(jobs) or damaged:
-        if damaged:
-            print(f"{damaged}; replaced by this run's provenance", file=sys.stderr)
-        save_provenance(report_dir, meta)
-    return results, meta

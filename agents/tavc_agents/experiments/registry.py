@@ -95,6 +95,7 @@ class AllocatorRegistry:
         self._runtime: dict[str, Allocator] = {}
         self._group = group
         self._plugins: dict[str, metadata.EntryPoint] | None = None
+        self._refused: dict[str, metadata.EntryPoint] = {}  # entry points with invalid names
 
     # -- naming -------------------------------------------------------------------------------
     def register(
@@ -140,6 +141,11 @@ class AllocatorRegistry:
         """The allocator called `name`; a ValueError naming the known ones otherwise."""
         if name not in self._entries:
             point = self._entry_points().get(name)
+            if point is None and name in self._refused:
+                raise PluginError(
+                    f"allocator {name!r} of the {_where(self._refused[name])} is refused: its "
+                    f"name is invalid; allowed: {NAME_RULE}"
+                )
             if point is None:
                 raise ValueError(f"allocator {name!r} is unknown; allowed: {self.names()}")
             self._entries[name] = _load(point)
@@ -157,7 +163,14 @@ class AllocatorRegistry:
             found: dict[str, metadata.EntryPoint] = {}
             points = metadata.entry_points(group=self._group) if self._group else ()
             for point in points:
-                if point.name in self._built_in:
+                if not _NAME.match(point.name):  # the rule `register` applies
+                    self._refused.setdefault(point.name, point)
+                    warnings.warn(
+                        f"the {_where(point)} is ignored: the name {point.name!r} is invalid; "
+                        f"allowed: {NAME_RULE}",
+                        stacklevel=2,
+                    )
+                elif point.name in self._built_in:
                     warnings.warn(
                         f"the {_where(point)} is ignored: {point.name!r} is a built-in allocator",
                         stacklevel=2,
@@ -200,7 +213,14 @@ def _load(point: metadata.EntryPoint) -> Allocator:
     where = _where(point)
     try:
         factory = point.load()
-    except Exception as error:  # whatever the plugin's import raises is the plugin's fault
+    except KeyboardInterrupt:
+        raise
+    except SystemExit as error:  # its import must not end the program, silently
+        raise PluginError(
+            f"allocator {point.name!r} could not be loaded from the {where}: importing it called "
+            f"sys.exit({error.code!r}); allowed: a module that imports without exiting"
+        ) from None
+    except BaseException as error:  # whatever the plugin's import raises is the plugin's fault
         raise PluginError(
             f"allocator {point.name!r} could not be loaded from the {where}: "
             f"{type(error).__name__}: {error}"

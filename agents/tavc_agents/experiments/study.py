@@ -20,6 +20,7 @@ import dataclasses
 import datetime as _dt
 import itertools
 import sys
+import time
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,9 +34,16 @@ from tavc_agents.experiments.files import REPORT_MAX_BYTES, atomic_path, read_re
 from tavc_agents.experiments.folders import FolderError, check_out_folder, hold_folder
 from tavc_agents.experiments.limits import check_settings
 from tavc_agents.experiments.packs import pack_new
-from tavc_agents.experiments.provenance import CHECKOUT, run_recorded
+from tavc_agents.experiments.provenance import (
+    CHECKOUT,
+    load_provenance,
+    replaceable_provenance,
+    run_metadata,
+    save_provenance,
+)
 from tavc_agents.experiments.runner import TrialResult
-from tavc_agents.experiments.sweep import TRIALS, JobKind, SaveError, TrialSpec
+from tavc_agents.experiments.sweep import TRIALS, JobKind, SaveError, TrialSpec, run_jobs
+from tavc_env.scenarios import SCENARIOS, Scenario
 from tavc_env.validation import is_integer, is_number
 
 RESULTS_DIR = (CHECKOUT or Path()) / "benchmarks" / "results"
@@ -205,7 +213,7 @@ class StudySettings:
         """Run (or resume) `jobs` with a progress bar, each saved in the output folder's `jobs_in`
         as it finishes, with this run's workers and backend; return the results by key and their
         provenance, which records these settings and is kept in `provenance_in` (see
-        `tavc_agents.experiments.provenance.run_recorded`)."""
+        `run_recorded`)."""
         out = self.out_dir()
         return run_recorded(
             jobs,
@@ -282,16 +290,19 @@ def run_study(
     is checked before any work and held for the whole run (`folders`): a folder that cannot be
     used, or that another run is writing, is refused in one line with exit code 2."""
     given = list(sys.argv[1:] if argv is None else argv)
-    settings = parse_settings(module.Settings, given, description, prog)
-    out = settings.out_dir()
     command = prog or f"python {sys.argv[0]}"
-    try:
+    out: Path | None = None
+    started = False  # whether the study has begun to run (and may have saved jobs)
+    try:  # Ctrl-C at any moment, from the first (reading the settings), is one line
+        settings = parse_settings(module.Settings, given, description, prog)
+        out = settings.out_dir()
         for option in ("--out", "--resume"):  # a Path cannot tell "" from "."
             if _given_empty(given, option):
                 check_out_folder("", option)
         check_out_folder(out, settings.out_option)
         with hold_folder(out):  # a second run on this folder is refused until this one ends
             print(f"Writing to {out}/", flush=True)
+            started = True
             outcome: Outcome = module.run(settings)
     except FolderError as error:  # refused before any work, in one line
         print(f"{command}: {error}", file=sys.stderr)
@@ -300,6 +311,12 @@ def run_study(
         print(f"\n{command}: {error}; continue with `{command} --resume {out}`", file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # Ctrl-C, or SIGTERM during a sweep: one line, not a traceback
+        if not started:
+            print(
+                f"\n{command}: interrupted before the study started; nothing was written.",
+                file=sys.stderr,
+            )
+            return 130
         print(
             f"\nInterrupted. The finished jobs are saved in {out}/; continue with "
             f"`{command} --resume {out}` (and the same other options).",
@@ -451,3 +468,155 @@ def redraw(out: Path, figure: str, draw: Callable[[Path], None]) -> Outcome:
         draw(tmp)
     text = f"Redrew {figure} from the report in {out}/ (nothing run; no other file written)."
     return Outcome(Path(out), [Path(out) / figure], text)
+
+
+# -- jobs run with their provenance ----------------------------------------------------------
+def run_recorded(
+    jobs: Sequence[J],
+    kind: JobKind[J, R],
+    jobs_dir: str | Path,
+    report_dir: str | Path,
+    settings: Mapping[str, Any],
+    *,
+    workers: int | None = None,
+    backend: str = "local",
+    wall_of: Callable[[R], float] | None = None,
+    progress_bar: bool = True,
+) -> tuple[dict[str, R], dict[str, Any]]:
+    """Run (or resume) `jobs` in `jobs_dir` with a progress bar; return the results by key and the
+    provenance of the results.
+
+    When this run computes any job, the provenance is this run's (taken before the jobs start,
+    so it names the commit they ran from), with its wall time and how many jobs were run or
+    resumed, and it is saved in `report_dir`, also when the run is interrupted (Ctrl-C, SIGTERM,
+    a refused save) after computing some jobs (then marked `interrupted`). When every job is
+    resumed, the provenance saved there by the run that computed them is returned (or, if there
+    is none, this run's). A damaged provenance.json (garbled, not a JSON object) is named in one
+    line and replaced by this run's; one that is not a regular file (a folder, a FIFO, a link) is
+    refused before any job runs, as a run could only replace it by deleting it."""
+    started = time.perf_counter()
+    damaged = replaceable_provenance(Path(report_dir))  # before any job runs
+    meta = run_metadata(settings=dict(settings))
+    finished: list[str] = []
+    resumed: list[str] = []
+    trial_wall = 0.0
+
+    def note(job: J, result: R, was_resumed: bool) -> None:
+        nonlocal trial_wall
+        if wall_of is not None:
+            trial_wall += wall_of(result)
+        finished.append(kind.key(job))
+        if was_resumed:
+            resumed.append(kind.key(job))
+
+    def counted(**extra: Any) -> dict[str, Any]:
+        counts: dict[str, Any] = dict(
+            wall_time_s=time.perf_counter() - started,
+            trials_resumed=len(resumed),
+            trials_run=len(finished) - len(resumed),
+            **extra,
+        )
+        if wall_of is not None:
+            counts["trial_wall_s_total"] = trial_wall
+        return {**meta, **counts}
+
+    try:
+        results = run_jobs(
+            jobs, kind, jobs_dir, workers, note, progress_bar=progress_bar, backend=backend
+        )
+    except BaseException:
+        # The jobs an interrupted run computed are saved; so is its provenance, so that a report
+        # rendered later from them names the commit and machine that made them.
+        if len(finished) > len(resumed):
+            try:
+                save_provenance(report_dir, counted(interrupted=True))
+            except Exception as error:  # the interruption is the news; this is one line beside it
+                print(f"provenance of the interrupted run not saved: {error}", file=sys.stderr)
+        raise
+    stored = None if damaged else load_provenance(report_dir)
+    if len(resumed) == len(jobs) and stored is not None:
+        return results, stored
+    meta = counted()
+    if len(resumed) < len(jobs) or damaged:
+        if damaged:
+            print(f"{damaged}; replaced by this run's provenance", file=sys.stderr)
+        save_provenance(report_dir, meta)
+    return results, meta
+
+
+# -- the settings of the studies of the suite's evaluation episodes -------------------------------
+@dataclass(frozen=True, kw_only=True)
+class EvaluationSettings(StudySettings):
+    """What every study of the suite's evaluation episodes takes: the scenarios, how many of their
+    evaluation seeds, and the episode length (the scenario's unless given)."""
+
+    min_seeds: ClassVar[int] = 1
+
+    scenarios: tuple[str, ...] = tuple(SCENARIOS)
+    """the scenarios (names in tavc_env.scenarios.SCENARIOS)"""
+    seeds: int | None = None
+    """evaluation seeds per scenario (default: all of the scenario's)"""
+    episode_h: float | None = None
+    """episode length, simulated hours (default: the scenario's)"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        refuse_invalid(
+            self,
+            [
+                (
+                    "scenarios",
+                    len(self.scenarios) >= 1 and all(n in SCENARIOS for n in self.scenarios),
+                    f"one or more of {', '.join(SCENARIOS)}",
+                ),
+                (
+                    "seeds",
+                    self.seeds is None or at_least(self.seeds, self.min_seeds),
+                    f"None or >= {self.min_seeds}",
+                ),
+                ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
+            ],
+        )
+
+    @property
+    def seeds_text(self) -> str:
+        return "all" if self.seeds is None else str(self.seeds)
+
+    @property
+    def episode_text(self) -> str:
+        return "scenario's" if self.episode_h is None else str(float(self.episode_h))
+
+    def seeds_of(self, scenario: Scenario) -> tuple[int, ...]:
+        return scenario.eval_seeds if self.seeds is None else scenario.eval_seeds[: self.seeds]
+
+    def episode_s(self, scenario: Scenario) -> float:
+        return scenario.episode_s if self.episode_h is None else float(self.episode_h) * 3600.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScoredSettings(StudySettings):
+    """What a study that scores episodes against the scenarios' references takes: the committed
+    references, and the bootstrap's resamples and seed."""
+
+    references: Path = RESULTS_DIR / "scenarios" / "references.json"
+    """the scenarios' committed references (random, stay, optimum) that normalise the scores"""
+    resamples: int = 10_000
+    """bootstrap resamples of every interval"""
+    seed: int = 0
+    """the bootstrap's generator seed"""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        refuse_invalid(
+            self,
+            [
+                ("resamples", at_least(self.resamples, 100), "an integer >= 100"),
+                ("seed", at_least(self.seed, 0), "an integer >= 0"),
+                (
+                    "references",
+                    Path(self.references).is_file(),
+                    "the scenarios study's references.json (python benchmarks/scenarios.py "
+                    "--stage measure)",
+                ),
+            ],
+        )

@@ -9,7 +9,10 @@ pool's workers die with it). Rerunning the same sweep loads the finished trials 
 rest; a stored trial that is corrupt or was edited is reported and run again. A sweep holds its
 folder's lock while it writes (`folders.hold_folder`: a second sweep there is refused at once); a
 save the folder refuses (a full disk) stops the sweep at once (`SaveError`), and Ctrl-C or SIGTERM
-end the pool's workers at once, dropping the queued trials.
+end the pool's workers at once, dropping the queued trials. A pool worker that dies abruptly (the
+kernel's out-of-memory killer sends SIGKILL) fails only the trial it was running (`WorkerDied`);
+the trials the broken pool was also running or had queued run in a fresh pool. A trial that
+finishes removes the `<key>.failed.json` an earlier run left for it.
 
 Backends: `"local"` (default) runs trials in a process pool over this machine's cores and needs
 nothing extra; `"ray"` runs the same trials as Ray tasks (the `ray` extra), on a local Ray instance
@@ -30,6 +33,7 @@ import dataclasses
 import hashlib
 import json
 import multiprocessing
+import multiprocessing.connection
 import os
 import pickle
 import re
@@ -40,6 +44,7 @@ import time
 import traceback
 from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Generic, TypeVar
@@ -293,12 +298,15 @@ def _run_unfinished(
             todo.append(job)
             continue
         results[kind.key(job)] = stored[0]
+        _forget_failure(out, kind.key(job))
         if on_done is not None:
             on_done(job, stored[0], True)
 
     records = {}
     for job in todo:  # bad input is refused before anything runs
         kind.check(job)
+        if backend == "ray":
+            _refuse_run_time_allocator_on_ray(job)
         records[kind.key(job)] = kind.record(job)
     failures: list[Failure] = []
 
@@ -306,6 +314,7 @@ def _run_unfinished(
         key = kind.key(job)
         if not saved:
             _save(kind.save, result, kind.record(job), result_path(out, key), kind.unit)
+        _forget_failure(out, key)  # an earlier run's failure record is stale now
         results[key] = result
         if on_done is not None:
             on_done(job, result, False)
@@ -339,6 +348,22 @@ def _run_unfinished(
     if failures:
         raise SweepError(failures, kind.unit)
     return results
+
+
+def _refuse_run_time_allocator_on_ray(job: object) -> None:
+    """A ValueError for a trial whose allocator was registered at run time: Ray workers find
+    allocators by entry point only, so every task would fail (or, for a name that replaced an
+    entry point or built-in, silently run that one instead)."""
+    if not isinstance(job, TrialSpec):
+        return
+    here = {entry.name for entry in REGISTRY.registered_at_run_time()}
+    if job.allocator in here:
+        raise ValueError(
+            f"allocator {job.allocator!r} of trial {job.key!r} was registered at run time "
+            "(register_allocator), which Ray workers do not see; allowed with backend 'ray': a "
+            "built-in allocator or a tavc.allocators entry point of an installed package (or "
+            "backend 'local')"
+        )
 
 
 def _saved(job: J, kind: JobKind[J, R], out: Path, move_aside: bool = True) -> tuple[R] | None:
@@ -465,6 +490,19 @@ class SweepError(RuntimeError):
         super().__init__("\n".join(lines))
 
 
+def _forget_failure(out: Path, key: str) -> None:
+    """Remove the failure record an earlier run left for `key`, which has now finished."""
+    path = out / f"{key}.failed.json"
+    if os.path.lexists(path):
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+
+
+class WorkerDied(RuntimeError):
+    """A job whose pool worker process ended abruptly while running it (killed by a signal: the
+    kernel's out-of-memory killer sends SIGKILL)."""
+
+
 def _failure(kind: JobKind[J, R], job: J, error: BaseException, out: Path) -> Failure:
     key = kind.key(job)
     text = "".join(traceback.format_exception(error))
@@ -511,6 +549,7 @@ class _Task(Generic[J, R]):
     unit: str = "job"
 
     def __call__(self) -> R:
+        _mark_started(self.path.name)
         result = self.run(self.job)
         _save(self.save, result, self.record, self.path, self.unit)
         return result
@@ -551,11 +590,33 @@ def _registered_for_workers() -> tuple[Allocator, ...]:
     return registered
 
 
-def _init_worker(parent: int, registered: Sequence[Allocator] = ()) -> None:
+_started: multiprocessing.connection.Connection | None = None
+"""In a pool worker: the write end of the driver's pipe on which each job says it started."""
+
+
+def _mark_started(name: str) -> None:
+    """In a pool worker: tell the driver that this process starts the job saved to `name`, so
+    that if this process dies abruptly the driver knows which job it was running. One write of a
+    short line to a pipe is atomic; a full pipe drops the line (the job is then not blamed)."""
+    if _started is not None:
+        with contextlib.suppress(OSError):
+            os.write(_started.fileno(), f"{os.getpid()} {name}\n".encode())
+
+
+def _init_worker(
+    parent: int,
+    registered: Sequence[Allocator] = (),
+    started: multiprocessing.connection.Connection | None = None,
+) -> None:
     """Pool worker initialiser: the allocators the driver registered at run time (a worker that is
     spawned rather than forked starts without them; entry points it finds itself), then
-    `_die_with_parent`. A forked worker lets go of the driver's folder locks it inherited."""
+    `_die_with_parent`. A forked worker lets go of the driver's folder locks it inherited.
+    `started`: where each job says it started (`_mark_started`)."""
+    global _started
     forget_inherited()
+    if started is not None:
+        os.set_blocking(started.fileno(), False)
+        _started = started
     for entry in registered:
         REGISTRY.register(entry.name, entry.factory, team=entry.team, replace=True)
     _die_with_parent(parent)
@@ -590,12 +651,43 @@ def _run_in_pool(
     finish: Callable[[J, R, bool], None],
     fail: Callable[[J, BaseException], None],
 ) -> None:
+    """Run `todo` in a process pool. A worker that dies abruptly breaks the pool (CPython then
+    fails every job it holds and ends its other workers): only the job that worker was running
+    fails (`WorkerDied`); the others run again in a fresh pool. A break that blames no job twice
+    in a row fails what is left (a pool that cannot start its workers must not loop)."""
+    queue, fruitless = list(todo), 0
+    while queue:
+        broken = _pool_round(queue, kind, records, out, min(n_workers, len(queue)), finish, fail)
+        if broken is None:
+            return
+        blamed, queue = broken
+        fruitless = 0 if blamed else fruitless + 1
+        if fruitless >= 2:
+            for job in queue:
+                fail(job, WorkerDied("the process pool broke again before the job could run"))
+            return
+
+
+def _pool_round(
+    todo: Sequence[J],
+    kind: JobKind[J, R],
+    records: Mapping[str, dict[str, Any]],
+    out: Path,
+    n_workers: int,
+    finish: Callable[[J, R, bool], None],
+    fail: Callable[[J, BaseException], None],
+) -> tuple[int, list[J]] | None:
+    """One pool over `todo`: None if it did not break; else how many jobs were failed for the
+    break and the jobs to run again."""
+    reader, writer = multiprocessing.Pipe(duplex=False)
     pool = ProcessPoolExecutor(
         max_workers=n_workers,
         initializer=_init_worker,
-        initargs=(os.getpid(), _registered_for_workers()),
+        initargs=(os.getpid(), _registered_for_workers(), writer),
     )
     futures: dict[Future[R], J] = {}
+    started: dict[str, int] = {}  # result file name -> the pid of the worker that started it
+    broken: list[J] = []
     try:
         for job in todo:
             key = kind.key(job)
@@ -608,10 +700,32 @@ def _run_in_pool(
                 error = future.exception()
                 if isinstance(error, SaveError):
                     raise error  # a folder that refuses one save refuses the next: stop here
-                if error is not None:
+                if isinstance(error, BrokenProcessPool):
+                    broken.append(futures[future])
+                elif error is not None:
                     fail(futures[future], error)
                 else:
                     finish(futures[future], future.result(), True)
+        if not broken:
+            return None
+        _read_started(reader, started)
+        died = _abruptly_ended(pool)
+        blamed, again = 0, []
+        for job in broken:
+            name = result_path(out, kind.key(job)).name
+            pid = started.get(name)
+            if pid is not None and pid in died:
+                fail(
+                    job,
+                    WorkerDied(
+                        f"its worker process (pid {pid}) {died[pid]}; the other "
+                        f"{kind.unit}s went on in a fresh pool"
+                    ),
+                )
+                blamed += 1
+            else:
+                again.append(job)
+        return blamed, again
     except BaseException:
         # Ctrl-C, SIGTERM or a refused save: every finished job was saved by its worker before it
         # reported back; the queued ones are dropped and the running ones end with their workers
@@ -620,6 +734,55 @@ def _run_in_pool(
         raise
     finally:
         pool.shutdown(wait=False, cancel_futures=True)
+        reader.close()
+        writer.close()
+
+
+def _read_started(reader: multiprocessing.connection.Connection, started: dict[str, int]) -> None:
+    """Every line the workers wrote on the `started` pipe so far, into `started` (the last job
+    each result file's worker started)."""
+    os.set_blocking(reader.fileno(), False)
+    data = b""
+    while True:
+        try:
+            chunk = os.read(reader.fileno(), 65536)
+        except BlockingIOError:
+            break
+        if not chunk:
+            break
+        data += chunk
+    for line in data.decode(errors="replace").splitlines():
+        pid, _, name = line.partition(" ")
+        if pid.isdigit() and name:
+            started[name] = int(pid)
+
+
+def _abruptly_ended(pool: ProcessPoolExecutor, timeout_s: float = 30.0) -> dict[int, str]:
+    """The workers of the broken `pool` that ended abruptly (not by the SIGTERM with which the
+    pool ends the others), by pid, with how they ended. Waits for the pool's manager thread,
+    which reaps them."""
+    # CPython's pool keeps these here (it has no public way to see its workers).
+    thread = getattr(pool, "_executor_manager_thread", None)
+    if thread is not None:
+        thread.join(timeout_s)
+    ended = {}
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        code = process.exitcode
+        if code is None or code in (0, -signal.SIGTERM, 128 + signal.SIGTERM):
+            continue
+        if code < 0:
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = f"signal {-code}"
+            how = f"was killed by {name}"
+            if -code == signal.SIGKILL:
+                how += " (the kernel's out-of-memory killer sends it: too little memory?)"
+        else:
+            how = f"exited with code {code}"
+        if process.pid is not None:
+            ended[process.pid] = how
+    return ended
 
 
 def _end_workers(pool: ProcessPoolExecutor, grace_s: float = 0.5) -> None:
@@ -849,6 +1012,7 @@ def rerun_failed(path: str | Path) -> TrialResult:
     spec = TrialSpec(**record)
     result = run_spec(spec)
     _save_trial(result, data["record"], Path(path).with_name(f"{spec.key}.json"))
+    _forget_failure(Path(path).parent, spec.key)  # the failure is stale now
     return result
 
 
@@ -868,4 +1032,7 @@ if __name__ == "__main__":
     if len(sys.argv) != 2:
         raise SystemExit("usage: python -m tavc_agents.experiments.sweep <key>.failed.json")
     done = rerun_failed(sys.argv[1])
-    print(f"{done.label}: ran again without error and was saved beside {sys.argv[1]}")
+    print(
+        f"{done.label}: ran again without error and was saved beside {sys.argv[1]} "
+        "(that failure record is removed)"
+    )

@@ -17,8 +17,8 @@ import allocators
 import interference
 import leaderboard
 import table1
+from arena_analysis import plot_interference, read_group_rows
 from tavc_agents import learning_runs
-from tavc_agents.analysis.interference import plot_interference, read_group_rows
 from tavc_agents.analysis.plots import allocation_timeline, learning_curve, redraw_learning_curve
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.learning_runs import CurveRow, Evaluation, LearningRun

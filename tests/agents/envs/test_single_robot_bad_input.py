@@ -53,3 +53,9 @@ def test_a_numpy_integer_seed_is_the_same_seed() -> None:
 def test_a_seed_that_is_not_an_integer_is_refused(seed: Any) -> None:
     with pytest.raises(ValueError, match=rf"^seed = {re.escape(repr(seed))} is invalid; allowed"):
         make().reset(seed=seed)
+
+
+def test_reset_options_that_are_not_a_mapping_are_refused() -> None:
+    """issue 35: `reset(options='x')` was silently ignored."""
+    with pytest.raises(ValueError, match=r"^options = 'x' is invalid; allowed: None or a mapping"):
+        make().reset(seed=0, options="x")  # type: ignore[arg-type]

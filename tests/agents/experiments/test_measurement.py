@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import tavc_env
-from tavc_agents.experiments.timing import random_choice_run
+from arena_runs import random_choice_run
 from tavc_env.engine.simulation import Simulation
 from tavc_env.measurement import (
     FixedAllocation,

@@ -8,12 +8,8 @@ from pathlib import Path
 import pytest
 
 from tavc_agents.analysis.reports import metadata_markdown
-from tavc_agents.experiments.provenance import (
-    load_provenance,
-    run_metadata,
-    run_recorded,
-    save_provenance,
-)
+from tavc_agents.experiments.provenance import load_provenance, run_metadata, save_provenance
+from tavc_agents.experiments.study import run_recorded
 from tavc_agents.experiments.sweep import TRIALS, TrialResult, TrialSpec
 
 

@@ -189,6 +189,70 @@ def test_a_broken_plugin_is_named_not_a_traceback(
     ]
 
 
+EXITING = {
+    "example_exits": "tavc_exiting_plugin:Thing",
+    "example_raises_base": "tavc_base_plugin:Thing",
+}
+
+
+def exiting_plugins(site: Path) -> Path:
+    """Two plugins whose import calls sys.exit(3) or raises a BaseException of its own."""
+    site.mkdir(parents=True, exist_ok=True)
+    (site / "tavc_exiting_plugin.py").write_text("import sys\nsys.exit(3)\n")
+    (site / "tavc_base_plugin.py").write_text(
+        "class Stop(BaseException):\n    pass\n\nraise Stop('no')\n"
+    )
+    return install(site, "tavc-exiting-plugin", EXITING)
+
+
+def test_a_plugin_that_exits_or_raises_a_base_exception_at_import_is_named(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # defect 9 of issue 35: sys.exit at import ended `tavc trial` with its code and no message
+    site = exiting_plugins(tmp_path / "site")
+    monkeypatch.syspath_prepend(str(site))
+    registry = fresh()
+    with pytest.raises(PluginError) as caught:
+        registry.get("example_exits")
+    message = str(caught.value)
+    assert "allocator 'example_exits' could not be loaded from the entry point" in message
+    assert "tavc-exiting-plugin 0.1: importing it called sys.exit(3)" in message
+    with pytest.raises(PluginError, match=r"'example_raises_base' could not .*: Stop: no"):
+        registry.get("example_raises_base")
+    done = subprocess.run(
+        [sys.executable, "-m", "tavc_agents", "trial", "--allocator", "example_exits"],
+        capture_output=True,
+        text=True,
+        env=subprocess_env(site),
+        timeout=120,
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "importing it called sys.exit(3)" in done.stderr
+
+
+def test_entry_point_names_register_refuses_are_neither_listed_nor_usable(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # defect 9 of issue 35: entry-point names that register_allocator refuses were listed and used
+    points = {"9lives": EXAMPLE["example_split"], "has space": EXAMPLE["example_split"]}
+    site = install(tmp_path / "site", "tavc-odd-names", points)
+    monkeypatch.syspath_prepend(str(PLUGIN_SOURCE))
+    monkeypatch.syspath_prepend(str(site))
+    registry = fresh()
+    with pytest.warns(UserWarning) as caught:
+        names = registry.names()
+    assert "9lives" not in names and "has space" not in names
+    shown = sorted(str(w.message) for w in caught)
+    assert len(shown) == 2 and all(
+        "\n" not in m and "is invalid; allowed: a letter" in m for m in shown
+    )
+    assert "the name '9lives' is invalid" in shown[0] and "tavc-odd-names 0.1" in shown[0]
+    with pytest.raises(PluginError, match=r"allocator '9lives' of the entry point .* is refused"):
+        registry.make_allocator("9lives")
+    with pytest.raises(ValueError, match=r"allocator name '9lives' is invalid"):
+        registry.register("9lives", softmax_tavc)  # the same rule
+
+
 def subprocess_env(site: Path) -> dict[str, str]:
     paths = [str(site), str(PLUGIN_SOURCE), os.environ.get("PYTHONPATH", "")]
     return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in paths if p)}

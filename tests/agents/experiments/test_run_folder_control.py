@@ -167,6 +167,62 @@ def test_the_lock_is_reentrant_within_a_process(tmp_path: Path) -> None:
     assert not folders._held
 
 
+@pytest.mark.parametrize("kind", ["fifo", "folder", "link"])
+def test_a_lock_file_that_is_not_a_regular_file_is_refused_in_one_line(
+    tmp_path: Path, kind: str
+) -> None:
+    # defect 3 of issue 35: a FIFO there gave a raw OSError (EINVAL) from every sweep and the packer
+    from tavc_agents.experiments import packs
+
+    out = tmp_path / "run"
+    out.mkdir()
+    lock = out / LOCK_FILE
+    if kind == "fifo":
+        os.mkfifo(lock)
+    elif kind == "folder":
+        lock.mkdir()
+    else:
+        lock.symlink_to(tmp_path / "elsewhere")
+    what = {"fifo": "it is a FIFO", "folder": "it is a folder", "link": "a symbolic link"}[kind]
+    with pytest.raises(FolderError) as caught:
+        run_jobs([Marked("a", 0.0, str(tmp_path))], MARKED, out, workers=1)
+    message = str(caught.value)
+    assert str(lock) in message and what in message and "allowed: a regular file" in message
+    assert "\n" not in message
+    assert not (tmp_path / "started").exists()  # nothing ran
+    with pytest.raises(FolderError, match=what):
+        packs.pack_folder(out)
+    assert not folders._held
+
+
+def test_a_full_disk_at_the_lock_pid_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # defect 3 of issue 35: the pid write on a full disk was a raw OSError traceback
+    from tavc_agents.experiments import packs
+
+    def no_room(*args: object) -> int:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    out = tmp_path / "run"
+    out.mkdir()
+    monkeypatch.setattr(folders.os, "pwrite", no_room)
+    for attempt in (
+        lambda: run_jobs([Marked("a", 0.0, str(tmp_path))], MARKED, out, workers=1),
+        lambda: packs.pack_folder(out),
+    ):
+        with pytest.raises(FolderError) as caught:
+            attempt()
+        message = str(caught.value)
+        assert "No space left on device" in message and LOCK_FILE in message
+        assert "\n" not in message
+    assert packs.main([str(out)]) == 2
+    assert not folders._held and not (tmp_path / "started").exists()
+    monkeypatch.undo()
+    with hold_folder(out):  # the failed attempts left the lock free
+        pass
+
+
 # -- a refused save stops the sweep ----------------------------------------------------------------
 def full_disk(result: dict[str, Any], record: dict[str, Any], path: Path) -> None:
     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
@@ -308,3 +364,35 @@ def test_git_ignores_the_lock_in_committed_result_folders() -> None:
             ["git", "check-ignore", "-q", f"{folder}/{LOCK_FILE}"], cwd=ROOT, timeout=30
         )
         assert checked.returncode == 0, folder
+
+
+# -- Ctrl-C before a study's sweep starts ----------------------------------------------------------
+@pytest.mark.parametrize("phase", ["reading the settings", "the folder"])
+def test_ctrl_c_before_the_sweep_starts_is_one_line(
+    phase: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # issue 35: Ctrl-C in the first seconds of a study was a KeyboardInterrupt traceback
+    import table1
+    from tavc_agents.experiments import study
+
+    def interrupted(*args: object, **kwargs: object) -> Any:
+        raise KeyboardInterrupt
+
+    target = {
+        "reading the settings": (study, "parse_settings"),
+        "the folder": (study, "check_out_folder"),
+    }[phase]
+    monkeypatch.setattr(*target, interrupted)
+    ran = []
+    monkeypatch.setattr(table1, "run", lambda settings: ran.append(settings))
+    code = study.run_study(
+        table1, ["--out", str(tmp_path / "run")], "", "python benchmarks/table1.py"
+    )
+    err = capsys.readouterr().err
+    assert code == 130 and not ran
+    assert err.strip() == (
+        "python benchmarks/table1.py: interrupted before the study started; nothing was written."
+    )

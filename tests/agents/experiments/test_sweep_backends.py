@@ -134,6 +134,28 @@ def test_unknown_backend_raises(tmp_path: Path) -> None:
         run_sweep(specs(1), tmp_path, backend="dask")
 
 
+def test_a_run_time_allocator_is_refused_up_front_with_ray(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """issue 35: a run-time registration passed the check and then failed in every Ray task (Ray
+    workers see entry points only)."""
+    from tavc_agents.experiments.registry import REGISTRY
+    from tavc_agents.learners.tavc import softmax_tavc
+
+    monkeypatch.setattr(REGISTRY, "_entries", dict(REGISTRY._entries))  # undone after the test
+    monkeypatch.setattr(REGISTRY, "_runtime", {})
+    REGISTRY.register("mine_here", softmax_tavc)
+    spec = TrialSpec(key="t", allocator="mine_here", seed=0, convergence_s=0.0, measured_s=60.0)
+    with pytest.raises(ValueError) as error:
+        run_sweep([spec], tmp_path, backend="ray")  # refused before Ray is even imported
+    assert str(error.value) == (
+        "allocator 'mine_here' of trial 't' was registered at run time (register_allocator), "
+        "which Ray workers do not see; allowed with backend 'ray': a built-in allocator or a "
+        "tavc.allocators entry point of an installed package (or backend 'local')"
+    )
+    assert not list(tmp_path.glob("*.json"))
+
+
 @dataclass(frozen=True)
 class Square:
     x: int

@@ -16,6 +16,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -205,6 +206,58 @@ def test_a_failing_job_does_not_lose_the_others(tmp_path: Path, workers: int) ->
     ]
     failed = json.loads((tmp_path / "j1.failed.json").read_text())
     assert failed["record"] == {"key": "j1", "fail": True} and "job j1 broke" in failed["error"]
+
+
+@dataclass(frozen=True)
+class MortalJob:
+    key: str
+    doomed: bool  # killed like the kernel's out-of-memory killer does while the flag file exists
+    flag: str
+
+
+def mortal(job: MortalJob) -> dict[str, Any]:
+    time.sleep(0.3)
+    if job.doomed and os.path.exists(job.flag):
+        os.kill(os.getpid(), signal.SIGKILL)
+    return {"key": job.key, "pid": os.getpid()}
+
+
+def test_a_killed_worker_fails_only_its_job_and_a_resume_clears_the_failure(
+    tmp_path: Path,
+) -> None:
+    # defect 8 of issue 35: a worker killed with SIGKILL marked every queued job failed, and the
+    # stale .failed.json records survived a successful resume
+    out, flag = tmp_path / "out", tmp_path / "oom"
+    flag.touch()
+    jobs = [MortalJob(f"j{i}", doomed=(i == 1), flag=str(flag)) for i in range(8)]
+    kind = json_jobs(mortal, lambda j: j.key)
+    with pytest.raises(SweepError) as caught:
+        run_jobs(jobs, kind, out, workers=2)
+    message = str(caught.value)
+    assert "1 run(s) failed" in message
+    assert (
+        "j1 (seed -): tavc_agents.experiments.sweep.WorkerDied: its worker process (pid " in message
+    )
+    assert "was killed by SIGKILL" in message
+    saved = {p.name for p in out.glob("j*.json")}
+    assert saved == {f"j{i}.json" for i in range(8) if i != 1} | {"j1.failed.json"}
+    flag.unlink()  # enough memory this time
+    results = run_jobs(jobs, kind, out, workers=2)
+    assert sorted(results) == [f"j{i}" for i in range(8)]
+    assert not list(out.glob("*.failed.json"))  # the stale failure record is gone
+
+
+def test_a_pool_that_keeps_breaking_fails_what_is_left_instead_of_looping(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from tavc_agents.experiments import sweep
+
+    monkeypatch.setattr(sweep, "_abruptly_ended", lambda pool: {})  # nothing to blame
+    flag = tmp_path / "oom"
+    flag.touch()
+    jobs = [MortalJob(f"j{i}", doomed=True, flag=str(flag)) for i in range(3)]
+    with pytest.raises(SweepError, match=r"3 run\(s\) failed"):
+        run_jobs(jobs, json_jobs(mortal, lambda j: j.key), tmp_path, workers=2)
 
 
 def test_a_failed_trial_names_its_seed_and_reruns_alone(tmp_path: Path) -> None:

@@ -1,7 +1,9 @@
 """`BatchedArenaEnv`: N arenas stepped together, results stacked. Shapes and dtypes; same seed,
 same arrays, and in-process and worker modes (fork and spawn) agree bit for bit with the plain env
 stepped by hand; same-step autoreset; a worker's exception is raised here with its traceback; close
-is idempotent; workers end when their parent dies; bad arguments are refused. Nothing is timed."""
+is idempotent; workers end when their parent dies, even in the constructor; a frozen worker is
+named after `timeout_s` and the batch closed; bad arguments (`n_envs` over `MAX_ENVS` included)
+are refused."""
 
 from __future__ import annotations
 
@@ -16,7 +18,13 @@ import numpy as np
 import pytest
 
 import tavc_env
-from tavc_env.adapters.batched import BatchedArenaEnv, WorkerError
+from tavc_env.adapters.batched import (
+    MAX_ENVS,
+    MAX_WORKERS,
+    BatchedArenaEnv,
+    WorkerError,
+    WorkerTimeoutError,
+)
 from tavc_env.env import TavcArenaEnv
 
 SHORT = {"preset": "dahl2004", "max_sim_time_s": 300.0}  # an episode of about 15-20 steps
@@ -43,6 +51,30 @@ def failing_env(**kwargs: Any) -> TavcArenaEnv:
         raise ZeroDivisionError("a fault planted in the worker")
 
     env.step = broken_step  # type: ignore[method-assign]
+    return env
+
+
+FROZEN_SEED = int(np.random.SeedSequence(0).spawn(2)[1].generate_state(1)[0])  # arena 1's
+
+
+def freezing_env(**kwargs: Any) -> TavcArenaEnv:
+    """An arena whose `step` never returns once it was reset with `FROZEN_SEED` (arena 1 of a
+    batch reset with seed 0): a worker frozen in a step."""
+    env = tavc_env.parallel_env(**kwargs)
+    reset, step = env.reset, env.step
+    seeds: list[Any] = []
+
+    def recording_reset(seed: Any = None, options: Any = None) -> Any:
+        seeds.append(seed)
+        return reset(seed=seed, options=options)
+
+    def frozen_step(actions: Any) -> Any:
+        if seeds and seeds[0] == FROZEN_SEED:
+            time.sleep(3600)
+        return step(actions)
+
+    env.reset = recording_reset  # type: ignore[method-assign]
+    env.step = frozen_step  # type: ignore[method-assign]
     return env
 
 
@@ -171,9 +203,82 @@ def test_workers_end_when_their_parent_dies() -> None:
     assert not any(_alive(pid) for pid in pids)
 
 
+def test_a_frozen_worker_is_named_and_the_batch_closed_within_timeout_s() -> None:
+    # defect 5 of issue 35: a frozen worker blocked step forever and left its shared memory
+    batch = BatchedArenaEnv(2, workers=2, env_kwargs=SHORT, make_env=freezing_env, timeout_s=2)
+    pids, block = batch.worker_pids, _block(batch)
+    assert os.path.exists(block)
+    batch.reset(seed=0)
+    started = time.monotonic()
+    with pytest.raises(WorkerTimeoutError) as caught:
+        batch.step(np.zeros((2, 6), np.int64))
+    took = time.monotonic() - started
+    message = str(caught.value)
+    assert (
+        f"worker 1 of 2 (pid {pids[1]}) did not answer step() within timeout_s = 2.0 s" in message
+    )
+    assert "worker 0" not in message and "\n" not in message and "allowed: " in message
+    assert 2.0 <= took < 10.0
+    assert not any(_alive(pid) for pid in pids) and not os.path.exists(block)
+    with pytest.raises(ValueError, match="closed"):
+        batch.step(np.zeros((2, 6), np.int64))
+    batch.close()  # closing again does nothing
+
+
+def test_workers_building_their_arenas_end_when_their_parent_is_killed() -> None:
+    # defect 5 of issue 35: workers outlived a parent killed in the constructor by minutes,
+    # holding their memory and the shared block
+    code = (
+        "import multiprocessing, os, time, tavc_env\n"
+        "from tavc_env.adapters.batched import BatchedArenaEnv\n"
+        "def slow(**kwargs):\n"
+        "    if multiprocessing.parent_process() is not None:\n"
+        "        print(os.getpid(), flush=True)\n"
+        "        time.sleep(600)\n"
+        "    return tavc_env.parallel_env(**kwargs)\n"
+        "BatchedArenaEnv(2, workers=2, make_env=slow, start_method='fork')\n"
+    )
+    with subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, text=True
+    ) as parent:
+        assert parent.stdout is not None
+        pids = [int(parent.stdout.readline()) for _ in range(2)]
+        blocks = {_mapped_block(pid) for pid in pids}
+        block = blocks.pop()
+        assert not blocks and os.path.exists(block)
+        os.kill(parent.pid, signal.SIGKILL)  # in the constructor; no clean-up code runs
+    deadline = time.monotonic() + 10
+    while (any(_alive(p) for p in pids) or os.path.exists(block)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_alive(pid) for pid in pids)
+    assert not os.path.exists(block)  # the resource tracker unlinked it once the workers ended
+
+
+def test_timeout_s_bounds_the_wait_for_workers_building_their_arenas() -> None:
+    started = time.monotonic()
+    with pytest.raises(WorkerTimeoutError, match=r"did not build its arenas within timeout_s"):
+        BatchedArenaEnv(2, workers=2, make_env=sleepy_builder, timeout_s=1.5)
+    assert time.monotonic() - started < 10.0
+
+
+def sleepy_builder(**kwargs: Any) -> TavcArenaEnv:
+    """Builds arenas in this process at once and in a worker after an hour."""
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:
+        time.sleep(3600)
+    return tavc_env.parallel_env(**kwargs)
+
+
 @pytest.mark.parametrize(
     ("kwargs", "name"),
     [
+        ({"n_envs": MAX_ENVS + 1}, "n_envs"),  # defect 5 of issue 35: no bound
+        ({"n_envs": 10**9}, "n_envs"),
+        ({"n_envs": MAX_ENVS, "workers": MAX_WORKERS + 1}, "workers"),
+        ({"n_envs": 1, "timeout_s": 0}, "timeout_s"),
+        ({"n_envs": 1, "timeout_s": float("nan")}, "timeout_s"),
+        ({"n_envs": 1, "timeout_s": "5"}, "timeout_s"),
         ({"n_envs": 0}, "n_envs"),
         ({"n_envs": 2.0}, "n_envs"),
         ({"n_envs": 2, "workers": 3}, "workers"),
@@ -218,6 +323,19 @@ def test_bad_actions_and_seeds_are_refused() -> None:
         step = batch.step(np.zeros((2, 6), np.int64))  # a rejected step changed nothing
         idle = np.where(step.must_decide, 0, 99)  # entries of robots that need not decide: unread
         batch.step(idle)
+
+
+def _block(batch: BatchedArenaEnv) -> str:
+    """The file of the batch's shared-memory block."""
+    assert batch._workers is not None
+    return f"/dev/shm/{batch._workers.memory.name}"
+
+
+def _mapped_block(pid: int) -> str:
+    """The shared-memory block process `pid` maps (a worker maps its batch's)."""
+    with open(f"/proc/{pid}/maps", encoding="ascii") as fh:
+        (block,) = {line.split()[-1] for line in fh if "/dev/shm/psm_" in line}
+    return block
 
 
 def _alive(pid: int) -> bool:

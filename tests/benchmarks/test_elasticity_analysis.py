@@ -13,14 +13,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+import arena_analysis as ea
+import arena_analysis as ia
 import interference as study
 import tavc_env
 from arena_runs import elasticity_jobs, measure_elasticity
-from tavc_agents.analysis import elasticity as ea
-from tavc_agents.analysis import interference as ia
 from tavc_env.config import lane_circuits
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[2]
 COMMITTED = ROOT / "benchmarks" / "results"
 Time = Callable[[str, int, int], float]
 

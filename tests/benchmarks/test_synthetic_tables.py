@@ -9,10 +9,13 @@ import numpy as np
 import pytest
 
 import tavc_env
-from tavc_agents.analysis.elasticity import ALONE, CROWDED, Tables, elasticity_of
-from tavc_agents.analysis.synthetic_tables import (
+from arena_analysis import (
+    ALONE,
+    CROWDED,
     KNEE_MIN,
     Family,
+    Tables,
+    elasticity_of,
     max_handling_s,
     reach,
     with_elasticity,

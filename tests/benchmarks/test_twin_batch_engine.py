@@ -12,10 +12,10 @@ import pytest
 from scipy import stats
 
 import tavc_env
+from arena_runs import Learner, run_batch
 from tavc_agents.analysis.measures import measure
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import run_trial
-from tavc_agents.experiments.twin_batch import Learner, run_batch
 from tavc_env.config import Breakdown
 from tavc_env.twin import InterferenceTables, random_allocation_run
 

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tavc_agents.analysis import interference as ia
+import arena_analysis as ia
 from tavc_env.measurement import CountedTask, FixedAllocation, FixedRun, Mode
 
 
