@@ -1,28 +1,45 @@
 """The deep-MARL leaderboard: TorchRL MAPPO and IPPO (one actor shared by every robot) trained for
 one budget of robot decisions on the paper's scenario and the three with the most headroom
-(`dahl2004`, `passing`, `three_circuits`, `bad_start`), training seeds 0-4, then run greedily on
-each scenario's evaluation seeds; interquartile means with bootstrap intervals over training seeds,
-beside `stay` and the best allocator. It needs the `marl` extra.
+(`dahl2004`, `passing`, `three_circuits`, `bad_start`), training seeds 0-4, then every final
+network read out both ways on each scenario's evaluation seeds: sampled (as it was trained) and
+greedy; interquartile means with bootstrap intervals over training seeds, beside `stay` and the
+best allocator. Training needs the `marl` extra; the read-outs need numpy only.
 
-Writes `deep_leaderboard.{md,csv,json}`, `deep_leaderboard.png`, every run under runs/ and its
-network under networks/ into a new run folder under runs/ (git ignores it), `--out`, or with
-`--update-reference` benchmarks/results/deep_leaderboard/. Runs resume: a rerun into the same
-folder skips the saved runs; `--max-jobs N` runs at most N new ones (0: only the report).
+Writes `deep_leaderboard.{md,csv,json}`, `deep_leaderboard.png`, every run under runs/, its
+network under networks/ and its read-outs under readouts/ into a new run folder under runs/ (git
+ignores it), `--out`, or with `--update-reference` benchmarks/results/deep_leaderboard/. Jobs
+resume: a rerun into the same folder skips the saved runs and read-outs; `--max-jobs N` trains at
+most N new runs (0: none), `--max-evaluations N` reads out at most N new (run, read-out) pairs
+(0: none; both 0: only the report).
 
-    python benchmarks/deep_leaderboard.py --update-reference --workers 2   # 40 runs
+    python benchmarks/deep_leaderboard.py --update-reference --workers 2   # 40 runs, 80 read-outs
+    python benchmarks/deep_leaderboard.py --update-reference --max-jobs 0  # read-outs of the saved networks
     python benchmarks/deep_leaderboard.py --quick                          # smoke run
 
 The deep-MARL part of the leaderboard: TorchRL MAPPO and IPPO (one actor shared by every robot;
 `tavc_agents.learners.torchrl_ppo`) trained on a scenario for one budget of robot decisions, then
-run greedily on the scenario's evaluation seeds through the trial runner, scored as the allocators'
+run on the scenario's evaluation seeds through the trial runner, scored as the allocators'
 leaderboard scores them (`benchmarks/leaderboard.py`).
 
-A job is one (algorithm, scenario, training seed) run: train on the scenario's env (training seeds
-0, 1, ...; the evaluation seeds are never seen), with a learning curve (the greedy network on one
-training-side episode, `CURVE_SEED`, after every `decisions / curve_points` decisions), then the
-final network on the evaluation seeds. Each job is saved as it finishes with its network
-(`networks/<key>.npz`); a rerun skips saved jobs, and `--max-jobs` bounds how many new jobs one
-session runs. The report renders from whatever jobs are saved, with N per cell.
+Two kinds of job. A training job is one (algorithm, scenario, training seed) run: train on the
+scenario's env (training seeds 0, 1, ...; the evaluation seeds are never seen), with a learning
+curve (the greedy network on one training-side episode, `CURVE_SEED`, after every
+`decisions / curve_points` decisions), then the final network greedily on the evaluation seeds of
+its day (kept in its record; the report reads the read-out jobs instead). Each is saved as it
+finishes with its network (`networks/<key>.npz`). A read-out job is one (run, read-out): the
+saved network, unchanged, read out `sampled` (each robot draws an allowed circuit from the softmax
+of the network's scores, from its own seeded generator: the policy streams `run_trial` gives it,
+so an episode's draws are fixed by its seed) or `greedy` (the highest score), on the scenario's
+evaluation seeds and on `choice_episodes` training-side episodes (seeds 0, 1, 2 by default: the
+training seeds' range, never an evaluation seed). Read-out jobs are saved under readouts/ as they
+finish, keyed `<run key>__<read-out>`, with a digest of the network file they read (a retrained
+network is read out again). A rerun skips saved jobs of both kinds; the report renders from
+whatever is saved, with N per cell.
+
+Which read-out a learner is scored by: the one whose mean normalised score over the learner's runs
+and their training-side episodes is the higher (a tie goes to `sampled`, the policy as trained);
+the evaluation seeds never enter that choice. The report gives both read-outs' IQMs and the chosen
+one's as the headline.
 
 Training reward: `reward="value"` (docs/semi_mdp.md): a robot is paid its circuit's value at each
 delivery, so the team's summed undiscounted return per hour is the evaluation metric itself;
@@ -34,6 +51,7 @@ The script is `benchmarks/deep_leaderboard.py`.
 
 from __future__ import annotations
 
+import hashlib
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -68,9 +86,16 @@ DEEP_SCENARIOS = ("dahl2004", "passing", "three_circuits", "bad_start")
 CURVE_SEED = 1_000
 """The learning curve's episode: a training-side seed, not an evaluation seed."""
 REWARD_SCALE = 1e-3  # value rewards are about 2000 a delivery: networks see O(1)
+READOUTS = ("sampled", "greedy")
+"""How a saved network is read out (`NetworkTeam(readout=...)`): `sampled`, as it was trained (an
+allowed circuit drawn from the softmax of its scores, from each robot's seeded generator), and
+`greedy` (the highest score); in the report's order."""
+READOUT_TEXT = {"sampled": "sampled (as trained)", "greedy": "greedy (argmax)"}
+READOUT_COLOURS = {"sampled": "tab:green", "greedy": "tab:purple"}  # not the learners' C0, C1
 FIGURE = "deep_leaderboard.png"
 JOBS = "runs"
 NETWORKS = "networks"
+READOUT_JOBS_DIR = "readouts"
 Row = dict[str, Any]
 LEARNER_TEXT = {"mappo": "MAPPO (centralised critic)", "ippo": "IPPO (decentralised critic)"}
 CREDIT_TEXT = {
@@ -92,10 +117,11 @@ class Settings(ScoredSettings):
         "eval_seeds": 2,
         "episode_h": 0.2,
         "resamples": 200,
+        "choice_episodes": 1,
     }
     recorded_fields: ClassVar = (
         "algorithms scenarios seeds decisions batch epochs curve_points eval_seeds_text "
-        "episode_text resamples seed credit"
+        "episode_text resamples seed credit choice_episodes"
     )
 
     algorithms: tuple[str, ...] = ALGORITHMS
@@ -119,10 +145,16 @@ class Settings(ScoredSettings):
     """evaluation seeds per scenario (default: all of the scenario's)"""
     episode_h: float | None = None
     """episode length of training and evaluation, simulated hours (default: the scenario's)"""
+    choice_episodes: int = 3
+    """training-side episodes per run on which both read-outs are scored to choose the headline
+    read-out (seeds 0, 1, ...: the training seeds' range, never an evaluation seed)"""
     max_jobs: int | None = None
-    """run at most this many jobs not yet saved (0: only the report; default: all)"""
+    """train at most this many runs not yet saved (0: none; default: all)"""
+    max_evaluations: int | None = None
+    """read out at most this many (run, read-out) pairs not yet saved (0: none; default: all);
+    with --max-jobs 0 as well: only the report"""
     quick: bool = False
-    """smoke run: 1 seed, 400 decisions, 2 evaluation seeds of 0.2 h"""
+    """smoke run: 1 seed, 400 decisions, 2 evaluation seeds and 1 choice episode of 0.2 h"""
 
     def reference_name(self) -> str:
         # team-credit runs are the credit study's (docs/results/scenarios.md, "Own or team credit")
@@ -151,7 +183,17 @@ class Settings(ScoredSettings):
                 ("curve_points", at_least(self.curve_points, 1), "an integer >= 1"),
                 ("eval_seeds", self.eval_seeds is None or at_least(self.eval_seeds, 1), ">= 1"),
                 ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
+                (
+                    "choice_episodes",
+                    at_least(self.choice_episodes, 1) and self.choice_episodes <= 1_000,
+                    "an integer in 1..1000 (training-side seeds 0, 1, ...)",
+                ),
                 ("max_jobs", self.max_jobs is None or at_least(self.max_jobs, 0), "None or >= 0"),
+                (
+                    "max_evaluations",
+                    self.max_evaluations is None or at_least(self.max_evaluations, 0),
+                    "None or >= 0",
+                ),
             ],
         )
 
@@ -220,8 +262,15 @@ def jobs(s: Settings, networks: Path) -> list[Run]:
 
 def greedy_value(mlp: Mlp, scenario: str, seed: int, episode_s: float) -> float:
     """The network, greedy on every robot, for one episode of the scenario: value per hour."""
+    return network_value(mlp, scenario, seed, episode_s, "greedy")
+
+
+def network_value(mlp: Mlp, scenario: str, seed: int, episode_s: float, readout: str) -> float:
+    """The network read out `readout` on every robot for episode `seed` of the scenario (the env
+    reset with `seed`; a sampled robot draws from its policy stream of that trial): value per
+    hour."""
     result = run_trial(
-        NetworkTeam(mlp),
+        NetworkTeam(mlp, readout=readout),
         seed=seed,
         convergence_s=0.0,
         measured_s=episode_s,
@@ -299,42 +348,216 @@ def run_training(job: Run) -> dict[str, Any]:
 RUNS = json_jobs(run_training, run_key, unit="run", omit=("networks",), added={"credit": "own"})
 
 
+# -- the read-outs: each saved network evaluated both ways, without training ---------------------------
+@dataclass(frozen=True)
+class Readout:
+    """One saved network read out one way (a job): on the scenario's evaluation seeds and on the
+    training-side episodes that choose the headline read-out."""
+
+    run: str
+    """the run's key: its network is `<networks>/<run>.npz`"""
+    scenario: str
+    readout: str
+    episode_s: float
+    eval_seeds: tuple[int, ...]
+    choice_seeds: tuple[int, ...]
+    network: str
+    """the digest of the network file (`file_digest`): a network trained again is read out again"""
+    networks: str = ""
+    """the folder of the networks (not part of the record)"""
+
+
+def readout_key(job: Readout) -> str:
+    return f"{job.run}__{job.readout}"
+
+
+def file_digest(path: Path) -> str:
+    """The first 16 hex digits of the SHA-256 of the file."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
+def choice_seeds(s: Settings) -> tuple[int, ...]:
+    """The training-side episodes that choose the read-out: seeds 0, 1, ... (the training seeds'
+    range; the scenarios' evaluation seeds are 10000 and up)."""
+    return tuple(range(s.choice_episodes))
+
+
+def readout_jobs(
+    s: Settings, runs: Sequence[Run], results: Mapping[str, Any], networks: Path
+) -> list[Readout]:
+    """Both read-outs of every run whose training is saved with its network, in the runs' order
+    (so partial results stay balanced), each run's `sampled` first."""
+    out = []
+    for job in runs:
+        path = networks / f"{run_key(job)}.npz"
+        if run_key(job) not in results or not path.is_file():
+            continue
+        digest = file_digest(path)
+        for readout in READOUTS:
+            out.append(
+                Readout(
+                    run_key(job),
+                    job.scenario,
+                    readout,
+                    job.episode_s,
+                    job.eval_seeds,
+                    choice_seeds(s),
+                    digest,
+                    str(networks),
+                )
+            )
+    return out
+
+
+def run_readout(job: Readout) -> dict[str, Any]:
+    """Read the saved network out `job.readout` on the evaluation seeds and the choice's
+    training-side episodes; with its policy (every robot's probabilities after each circuit)."""
+    started, cpu0 = time.perf_counter(), time.process_time()
+    path = Path(job.networks) / f"{job.run}.npz"
+    if file_digest(path) != job.network:
+        raise ValueError(
+            f"network file {path} changed since its read-out was planned (digest "
+            f"{file_digest(path)}, not {job.network}); allowed: run the study again"
+        )
+    mlp = Mlp.load(path)
+    evaluation = [
+        network_value(mlp, job.scenario, seed, job.episode_s, job.readout)
+        for seed in job.eval_seeds
+    ]
+    choice = [
+        network_value(mlp, job.scenario, seed, job.episode_s, job.readout)
+        for seed in job.choice_seeds
+    ]
+    return {
+        "eval_values_per_h": evaluation,
+        "choice_values_per_h": choice,
+        "probabilities": policy_probabilities(mlp, job.scenario),
+        "wall_s": time.perf_counter() - started,
+        "cpu_s": time.process_time() - cpu0,
+    }
+
+
+def policy_probabilities(mlp: Mlp, scenario: str) -> list[list[list[float]]]:
+    """Each robot's probability of each circuit after serving each circuit (`[robot][last][next]`,
+    the softmax of the network's scores, every circuit allowed): the policy it was trained as,
+    which `sampled` follows and whose argmax `greedy` takes."""
+    config = SCENARIOS[scenario].config()
+    n, m = config.n_robots, config.n_circuits
+    out = []
+    for robot in range(n):
+        rows = []
+        for last in range(m):
+            scores = mlp.scores(np.concatenate([np.eye(m)[last], np.eye(n)[robot]]))
+            p = np.exp(scores - scores.max())
+            rows.append([round(float(v), 6) for v in p / p.sum()])
+        out.append(rows)
+    return out
+
+
+EVALUATIONS = json_jobs(run_readout, readout_key, unit="read-out", omit=("networks",))
+
+
 # -- the report ---------------------------------------------------------------------------------------
+Evaluations = Mapping[str, Mapping[str, Any]]
+"""Saved read-out results by `readout_key`."""
+
+
+def readouts_of(job: Run, evaluations: Evaluations) -> dict[str, Mapping[str, Any]]:
+    """The saved read-outs of a run, by read-out name."""
+    found = {r: evaluations.get(f"{run_key(job)}__{r}") for r in READOUTS}
+    return {r: v for r, v in found.items() if v is not None}
+
+
 def rows_of(
-    runs: Sequence[Run], results: Mapping[str, Mapping[str, Any]], refs: Mapping[str, Any]
+    runs: Sequence[Run],
+    results: Mapping[str, Mapping[str, Any]],
+    refs: Mapping[str, Any],
+    evaluations: Evaluations | None = None,
 ) -> list[Row]:
-    """One row per saved run: its mean value per hour and normalised score over the evaluation
-    seeds (a run's score), its decisions and its times."""
+    """One row per saved run: for each read-out its mean value per hour and normalised score over
+    the evaluation seeds (a run's score) and its mean score on the training-side choice episodes
+    (None while that read-out is not saved), its decisions and its times."""
     rows = []
     for job in runs:
         result = results.get(run_key(job))
         if result is None:
             continue
-        value = mean_value(result)
-        rows.append(
-            {
-                "scenario": job.scenario,
-                "algorithm": job.algorithm,
-                "seed": job.seed,
-                "decisions": result["decisions"],
-                "value_per_h": value,
-                "score": normalised(value, refs[job.scenario]),
-                "train_cpu_s": result["train_cpu_s"],
-                "cpu_s": result["cpu_s"],
-                "wall_s": result["wall_s"],
-            }
-        )
+        ref = refs[job.scenario]
+        row: Row = {
+            "scenario": job.scenario,
+            "algorithm": job.algorithm,
+            "seed": job.seed,
+            "decisions": result["decisions"],
+        }
+        saved = readouts_of(job, evaluations or {})
+        for readout in READOUTS:
+            ev = saved.get(readout)
+            value = None if ev is None else mean_value(ev)
+            row[f"value_per_h_{readout}"] = value
+            row[f"score_{readout}"] = None if value is None else normalised(value, ref)
+            row[f"choice_score_{readout}"] = (
+                None if ev is None else normalised(float(np.mean(ev["choice_values_per_h"])), ref)
+            )
+        row |= {
+            "train_cpu_s": result["train_cpu_s"],
+            "cpu_s": result["cpu_s"],
+            "wall_s": result["wall_s"],
+            "readout_cpu_s": sum(float(ev["cpu_s"]) for ev in saved.values()),
+        }
+        rows.append(row)
     return rows
 
 
 def mean_value(result: Mapping[str, Any]) -> float:
-    """A run's value per hour: its final network's mean over the evaluation seeds."""
+    """A network's value per hour: its mean over the evaluation seeds."""
     return float(np.mean(result["eval_values_per_h"]))
 
 
 def normalised(value: float, ref: Mapping[str, float]) -> float:
     """0 = random allocation, 1 = the model optimum (the scenarios' committed references)."""
     return (value - ref["random"]) / (ref["optimum"] - ref["random"])
+
+
+def chosen_readout(choice_means: Mapping[str, float]) -> str:
+    """The read-out a learner's own training-side episodes choose: the higher mean normalised
+    score there; a tie goes to `sampled` (the policy as it was trained)."""
+    return max(READOUTS, key=lambda r: choice_means[r])  # max keeps the first of equals
+
+
+def cells(s: Settings, rows: Sequence[Row], rng: np.random.Generator) -> dict[str, dict[str, Any]]:
+    """Per learner (`scenario/algorithm`) with both read-outs saved for some run: each read-out's
+    IQM over those runs with its interval, the training-side means, the chosen read-out and its
+    IQM (`iqm`, `ci`, `n`: the headline)."""
+    summary: dict[str, dict[str, Any]] = {}
+    for name in s.scenarios:
+        for algorithm in s.algorithms:
+            mine = [
+                r
+                for r in rows
+                if (r["scenario"], r["algorithm"]) == (name, algorithm)
+                and all(r[f"score_{ro}"] is not None for ro in READOUTS)
+            ]
+            if not mine:
+                continue
+            cell: dict[str, Any] = {"n": len(mine)}
+            for readout in READOUTS:
+                scores = [r[f"score_{readout}"] for r in mine]
+                point, low, high = iqm_ci([scores], s.resamples, rng)
+                cell[readout] = {"iqm": point, "ci": [low, high], "scores": scores}
+            means = {ro: float(np.mean([r[f"choice_score_{ro}"] for r in mine])) for ro in READOUTS}
+            chosen = chosen_readout(means)
+            cell |= {
+                "choice_mean": means,
+                "readout": chosen,
+                "iqm": cell[chosen]["iqm"],
+                "ci": cell[chosen]["ci"],
+            }
+            summary[f"{name}/{algorithm}"] = cell
+    return summary
+
+
+def interval(cell: Mapping[str, Any]) -> str:
+    return f"{cell['iqm']:.3f} [{cell['ci'][0]:.3f}, {cell['ci'][1]:.3f}]"
 
 
 def reference_scores(path: Path) -> dict[str, dict[str, float]]:
@@ -360,15 +583,15 @@ def best_allocators(path: Path) -> dict[str, tuple[str, float]]:
         return {}
     summary = read_report(path)["summary"]
     best: dict[str, tuple[str, float]] = {}
-    for allocator, cells in summary.items():
-        for name, cell in cells.items():
+    for allocator, cells_of in summary.items():
+        for name, cell in cells_of.items():
             if name != "suite" and (name not in best or cell["iqm"] > best[name][1]):
                 best[name] = (allocator, float(cell["iqm"]))
     return best
 
 
-def cost_plan(s: Settings, rows: Sequence[Row], n_jobs: int) -> str:
-    """The measured cost of a run and what the whole study takes at that cost."""
+def cost_plan(s: Settings, rows: Sequence[Row], n_jobs: int, evaluations: Evaluations) -> str:
+    """The measured cost of a run and of a read-out, and what the whole study takes at that cost."""
     if not rows:
         return "No run is saved yet: no cost measured."
     per_1000 = {
@@ -380,14 +603,25 @@ def cost_plan(s: Settings, rows: Sequence[Row], n_jobs: int) -> str:
     text = ", ".join(
         f"{a} {np.mean(v):.2f} (range {min(v):.2f}-{max(v):.2f})" for a, v in per_1000.items() if v
     )
-    return (
+    out = (
         f"Measured cost (CPU seconds of training per 1000 decisions, over the saved runs): {text}. "
-        f"A whole run (training, learning curve, evaluation) took {run_cpu / 60:.1f} CPU min on "
-        f"average, so the {n_jobs} runs take about {n_jobs * run_cpu / 3600:.1f} CPU h. "
-        f"Saved: {len(rows)}; left: {left}, about {left * run_cpu / 3600:.1f} CPU h, "
-        f"{left * run_cpu / 3600 / 2:.1f} h of wall time on 2 free cores (two runs side by side, "
-        "each on one core)."
+        f"A whole run (training, learning curve, its own greedy evaluation) took "
+        f"{run_cpu / 60:.1f} CPU min on average, so the {n_jobs} runs take about "
+        f"{n_jobs * run_cpu / 3600:.1f} CPU h. Saved: {len(rows)}; left: {left}, about "
+        f"{left * run_cpu / 3600:.1f} CPU h, {left * run_cpu / 3600 / 2:.1f} h of wall time on 2 "
+        "free cores (two runs side by side, each on one core)."
     )
+    read = [float(v["cpu_s"]) for v in evaluations.values()]
+    if read:
+        wanted = len(READOUTS) * n_jobs
+        out += (
+            f" Read-outs (one network one way on the evaluation seeds and the training-side "
+            f"episodes, no training): {len(read)} of {wanted} saved, "
+            f"{np.mean(read) / 60:.2f} CPU min each on average, {sum(read) / 3600:.2f} CPU h in "
+            f"all; left: {wanted - len(read)}, about {(wanted - len(read)) * np.mean(read) / 3600:.2f} "
+            "CPU h."
+        )
+    return out
 
 
 def report(
@@ -395,33 +629,35 @@ def report(
     runs: Sequence[Run],
     results: Mapping[str, Mapping[str, Any]],
     provenance: Mapping[str, Any],
+    evaluations: Evaluations | None = None,
+    readout_provenance: Mapping[str, Any] | None = None,
 ) -> Report:
+    evaluations = evaluations or {}
     refs = references(s.references)
-    rows = rows_of(runs, results, refs)
+    rows = rows_of(runs, results, refs, evaluations)
     baselines = reference_scores(s.references)
     stay = {name: v["stay"] for name, v in baselines.items()}
     best = best_allocators(RESULTS_DIR / "leaderboard" / "leaderboard.json")
-    rng = np.random.default_rng(s.seed)
+    summary = cells(s, rows, np.random.default_rng(s.seed))
+    for row in rows:
+        cell = summary.get(f"{row['scenario']}/{row['algorithm']}")
+        row["readout_chosen"] = None if cell is None else cell["readout"]
     table: list[list[Any]] = []
-    summary: dict[str, dict[str, Any]] = {}
     for name in s.scenarios:
         for algorithm in s.algorithms:
-            scores = [
-                r["score"] for r in rows if (r["scenario"], r["algorithm"]) == (name, algorithm)
-            ]
-            if scores:
-                point, low, high = iqm_ci([scores], s.resamples, rng)
-                cell = f"{point:.3f} [{low:.3f}, {high:.3f}]"
-                summary[f"{name}/{algorithm}"] = {"iqm": point, "ci": [low, high], "n": len(scores)}
-            else:
-                cell = "-"
+            trained = sum(1 for r in rows if (r["scenario"], r["algorithm"]) == (name, algorithm))
+            c = summary.get(f"{name}/{algorithm}")
             b = best.get(name)
             table.append(
                 [
                     SCENARIOS[name].id,
                     algorithm,
-                    len(scores),
-                    cell,
+                    trained,
+                    c["n"] if c else 0,
+                    *(interval(c[ro]) if c else "-" for ro in READOUTS),
+                    " / ".join(f"{c['choice_mean'][ro]:.3f}" for ro in READOUTS) if c else "-",
+                    c["readout"] if c else "-",
+                    f"**{interval(c)}** ({c['readout']})" if c else "-",
                     f"{stay[name]:.3f}",
                     f"{baselines[name]['static']:.3f}",
                     f"{b[0]} {b[1]:.3f}" if b else "-",
@@ -430,26 +666,23 @@ def report(
     header = [
         "scenario",
         "learner",
-        "N seeds",
-        "IQM score [95 % CI]",
+        "N runs",
+        "N read out",
+        *(f"{READOUT_TEXT[ro]}: IQM score [95 % CI]" for ro in READOUTS),
+        "training-side mean, sampled / greedy",
+        "read-out chosen",
+        "headline: chosen read-out's IQM [95 % CI]",
         "stay",
         "static optimum",
         "best allocator",
     ]
-    beats = [k for k, v in summary.items() if v["ci"][0] > stay[k.partition("/")[0]]]
-    verdict = (
-        "Learners whose interval lies above `stay` (with one seed the interval is a point): "
-        + ", ".join(beats)
-        + "."
-        if beats
-        else "No deep learner's interval lies above `stay` in any scenario so far."
-    )
     machine = provenance.get("machine", {})
     seeds_note = (
         "the scenario's evaluation seeds"
         if s.eval_seeds is None
         else f"the first {s.eval_seeds} of the scenario's evaluation seeds"
     )
+    choice = choice_seeds(s)
     body = "\n\n".join(
         [
             f"TorchRL {' and '.join(LEARNER_TEXT[a] for a in s.algorithms)}, one actor shared "
@@ -457,36 +690,82 @@ def report(
             f"({CREDIT_TEXT[s.credit]}) for "
             f"{s.decisions:,} robot decisions per run (the same budget in every scenario; PPO "
             f"batches of {s.batch} env steps, {s.epochs} epochs), training seeds "
-            f"0-{s.seeds - 1}. Each run's score is its final network's mean normalised score "
-            "(0 = random allocation, 1 = the model optimum; the scenarios' committed references) "
-            f"over {seeds_note}, greedy, through the "
-            "trial runner; a cell is the interquartile mean over training seeds [95 % percentile "
-            f"bootstrap, {s.resamples} resamples]. `stay` and the static optimum (the model optimum "
-            "at the start, held) are the references' mean scores; the best allocator is the "
-            "committed allocators' leaderboard's best IQM, if it is committed.",
+            f"0-{s.seeds - 1}. Each final network is read out two ways, without training again: "
+            "**sampled**, as it was trained (each robot draws an allowed circuit from the "
+            "softmax of the network's scores, from its own seeded generator: the policy streams "
+            "of the trial runner, so each episode's draws are fixed by its seed), and **greedy** "
+            "(each robot takes the circuit of highest score). A run's score under a read-out is "
+            "its network's mean normalised score (0 = random allocation, 1 = the model optimum; "
+            f"the scenarios' committed references) over {seeds_note}, through the trial runner; "
+            "a cell is the interquartile mean over training seeds [95 % percentile bootstrap, "
+            f"{s.resamples} resamples]. The headline read-out of a learner is the one its own "
+            f"training-side episodes choose: both read-outs are also run on {len(choice)} "
+            f"episodes of seeds {choice[0]}-{choice[-1]} (the training seeds' range, never an "
+            "evaluation seed), and the read-out with the higher mean score there over the "
+            "learner's runs is chosen (a tie goes to sampled); the evaluation seeds do not enter "
+            "the choice. `stay` and the static optimum (the model optimum at the start, held) "
+            "are the references' mean scores; the best allocator is the committed allocators' "
+            "leaderboard's best IQM, if it is committed.",
             markdown_table(header, table),
-            verdict,
-            "Every saved run: its network untrained, at its best and at its last checkpoint of "
-            f"the learning curve (one episode, seed {CURVE_SEED}), its score (the evaluation "
-            "above), and whether its final greedy policy is `stay` (every robot goes back to the "
-            "circuit it just served):",
-            runs_table(s, runs, results, refs),
-            cost_plan(s, rows, len(runs)),
+            verdicts(summary, stay),
+            "Every saved run: its learning curve (the greedy network on one training-side "
+            f"episode, seed {CURVE_SEED}: untrained, at its best and at its last checkpoint), "
+            "its final network's score under each read-out on the evaluation seeds and on the "
+            "training-side episodes, whether its greedy policy is `stay` (every robot goes back "
+            "to the circuit it just served), and the probability with which its sampled policy "
+            "stays (each robot's after each circuit: the mean, and the lowest and highest):",
+            runs_table(s, runs, results, refs, evaluations),
+            cost_plan(s, rows, len(runs), evaluations),
             f"Machine: {machine.get('cpu_model', '?')}, {machine.get('cores', '?')} cores, "
             f"{machine.get('ram_gib', '?')} GiB ({machine.get('platform', '?')}). "
             f"Wall time of the saved runs: {sum(r['wall_s'] for r in rows) / 3600:.2f} h, CPU "
-            f"time {sum(r['cpu_s'] for r in rows) / 3600:.2f} h (each run on one core).",
-            f"Learning curves (`{FIGURE}`): the greedy network's normalised score on one "
-            f"training-side episode (seed {CURVE_SEED}) against the decisions of training; "
-            "line: mean over seeds, band: range.",
+            f"time {sum(r['cpu_s'] for r in rows) / 3600:.2f} h (each run on one core)."
+            + readout_note(evaluations, readout_provenance),
+            f"Figure (`{FIGURE}`), top: learning curves, the greedy network's normalised score "
+            f"on one training-side episode (seed {CURVE_SEED}) against the decisions of "
+            "training (line: mean over seeds, band: range; only the final network is saved, so "
+            "the curve is greedy only). Bottom: every final network's score on the evaluation "
+            "seeds, sampled and greedy (dots: runs, bar: IQM; the chosen read-out marked *).",
             "What the networks learned (each robot's greedy circuit after serving each circuit, "
-            "the network's whole policy; seed 0 of each learner, or the first saved seed):",
-            learned(s, runs, results),
+            "and in brackets the probability of each circuit that its sampled read-out draws "
+            "from: the network's whole policy; seed 0 of each learner, or the first saved seed):",
+            learned(s, runs, results, evaluations),
         ]
     )
     rep = Report("deep_leaderboard", "Deep MARL on the scenario suite", body, rows, summary)
-    rep.figures.append((FIGURE, lambda path: draw(path, s, runs, results, refs, stay)))
+    rep.figures.append((FIGURE, lambda path: draw(path, s, runs, results, refs, stay, summary)))
     return rep
+
+
+def verdicts(summary: Mapping[str, Mapping[str, Any]], stay: Mapping[str, float]) -> str:
+    """Which learners' intervals lie above `stay`, under each read-out and the chosen one."""
+
+    def above(of: Callable[[Mapping[str, Any]], Mapping[str, Any]]) -> str:
+        beats = [k for k, v in summary.items() if of(v)["ci"][0] > stay[k.partition("/")[0]]]
+        return ", ".join(beats) if beats else "none"
+
+    if not summary:
+        return "No network is read out yet: no learner is compared with `stay`."
+    return (
+        "Learners whose interval lies above `stay` (with one seed the interval is a point): "
+        f"by the chosen read-out, {above(lambda v: v)}; sampled, "
+        f"{above(lambda v: v['sampled'])}; greedy, {above(lambda v: v['greedy'])}."
+    )
+
+
+def readout_note(evaluations: Evaluations, provenance: Mapping[str, Any] | None) -> str:
+    if not evaluations:
+        return ""
+    cpu = sum(float(v["cpu_s"]) for v in evaluations.values())
+    text = f" The saved read-outs took {cpu / 3600:.2f} CPU h (each on one core)"
+    if provenance:
+        commit = provenance.get("git", {}).get("commit", "?")
+        text += (
+            f"; the last session that ran some: `{provenance.get('command', '?')}` at commit "
+            f"`{str(commit)[:12]}`, {provenance.get('timestamp_utc', '?')} "
+            f"({READOUT_JOBS_DIR}/provenance.json)"
+        )
+    return text + "."
 
 
 def runs_table(
@@ -494,9 +773,11 @@ def runs_table(
     runs: Sequence[Run],
     results: Mapping[str, Mapping[str, Any]],
     refs: Mapping[str, Any],
+    evaluations: Evaluations | None = None,
 ) -> str:
-    """One row per saved run, by scenario, learner and seed: its learning curve's start, best
-    and end, and its final score."""
+    """One row per saved run, by scenario, learner and seed: its (greedy) learning curve's start,
+    best and end, its score under each read-out on the evaluation seeds and on the training-side
+    episodes, its greedy policy and how often its sampled policy stays."""
     table = []
     order = sorted(
         runs, key=lambda j: (s.scenarios.index(j.scenario), s.algorithms.index(j.algorithm), j.seed)
@@ -510,6 +791,7 @@ def runs_table(
         best = max(curve, key=lambda point: point[1])
         choices = result["choices"]
         stays = all(row[c] == c for row in choices for c in range(len(row)))
+        saved = readouts_of(job, evaluations or {})
         table.append(
             [
                 job.scenario,
@@ -518,17 +800,52 @@ def runs_table(
                 f"{curve[0][1]:.2f}",
                 f"{best[1]:.2f} at {best[0]:,}",
                 f"{curve[-1][1]:.2f}",
-                f"{normalised(mean_value(result), ref):.3f}",
+                *(score_text(saved.get(ro), "eval_values_per_h", ref) for ro in READOUTS),
+                *(score_text(saved.get(ro), "choice_values_per_h", ref) for ro in READOUTS),
                 "stay" if stays else "moves",
+                stay_probability(saved),
             ]
         )
     if not table:
         return "(no run saved yet)"
-    header = ["scenario", "learner", "seed", "untrained", "best (decisions)", "last", "score"]
-    return markdown_table([*header, "final policy"], table)
+    header = [
+        "scenario",
+        "learner",
+        "seed",
+        "curve (greedy): untrained",
+        "best (decisions)",
+        "last",
+        "score, sampled",
+        "score, greedy",
+        "training-side, sampled",
+        "training-side, greedy",
+        "greedy policy",
+        "sampled P(stay): mean (min-max)",
+    ]
+    return markdown_table(header, table)
 
 
-def learned(s: Settings, runs: Sequence[Run], results: Mapping[str, Mapping[str, Any]]) -> str:
+def score_text(ev: Mapping[str, Any] | None, key: str, ref: Mapping[str, float]) -> str:
+    """A saved read-out's mean normalised score over its episodes `key`; "-" if not saved."""
+    return "-" if ev is None else f"{normalised(float(np.mean(ev[key])), ref):.3f}"
+
+
+def stay_probability(saved: Mapping[str, Mapping[str, Any]]) -> str:
+    """How likely the sampled policy goes back to the circuit it just served, over every robot
+    and circuit: the mean, and the lowest and highest; "-" while no read-out is saved."""
+    probabilities = next((ev["probabilities"] for ev in saved.values()), None)
+    if probabilities is None:
+        return "-"
+    stays = [p[c][c] for p in probabilities for c in range(len(p))]
+    return f"{np.mean(stays):.2f} ({min(stays):.2f}-{max(stays):.2f})"
+
+
+def learned(
+    s: Settings,
+    runs: Sequence[Run],
+    results: Mapping[str, Mapping[str, Any]],
+    evaluations: Evaluations | None = None,
+) -> str:
     parts = []
     for name in s.scenarios:
         config = SCENARIOS[name].config()
@@ -538,13 +855,23 @@ def learned(s: Settings, runs: Sequence[Run], results: Mapping[str, Mapping[str,
             if first is None:
                 continue
             choices = results[run_key(first)]["choices"]
+            probabilities = next(
+                (ev["probabilities"] for ev in readouts_of(first, evaluations or {}).values()),
+                None,
+            )
             start = dict(SCENARIOS[name].arena).get("start_circuits")
+
             rows = [
                 [
                     f"robot_{i}",
                     config.robots[i].speed_class,
                     "drawn" if start is None else start[i],
-                    *choices[i],
+                    *(
+                        choice_text(
+                            choices[i][c], None if probabilities is None else probabilities[i][c]
+                        )
+                        for c in range(config.n_circuits)
+                    ),
                     end_circuit(choices[i], None if start is None else start[i]),
                 ]
                 for i in range(config.n_robots)
@@ -553,8 +880,8 @@ def learned(s: Settings, runs: Sequence[Run], results: Mapping[str, Mapping[str,
                 "robot",
                 "class",
                 "start",
-                *(f"after {c}" for c in range(config.n_circuits)),
-                "ends on",
+                *(f"after {c}: greedy (P sampled)" for c in range(config.n_circuits)),
+                "greedy ends on",
             ]
             parts.append(
                 f"**{SCENARIOS[name].id}, {algorithm}, seed {first.seed}** "
@@ -562,6 +889,13 @@ def learned(s: Settings, runs: Sequence[Run], results: Mapping[str, Mapping[str,
                 + markdown_table(header, rows)
             )
     return "\n\n".join(parts) if parts else "(no run saved yet)"
+
+
+def choice_text(greedy: int, probabilities: Sequence[float] | None) -> str:
+    """A robot's greedy circuit, with the probabilities its sampled read-out draws from."""
+    if probabilities is None:
+        return str(greedy)
+    return f"{greedy} ({' '.join(f'{p:.2f}' for p in probabilities)})"
 
 
 def end_circuit(choice: Sequence[int], start: int | None) -> str:
@@ -585,10 +919,16 @@ def draw(
     results: Mapping[str, Mapping[str, Any]],
     refs: Mapping[str, Any],
     stay: Mapping[str, float],
+    summary: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> None:
-    """One panel per scenario: each learner's curve, mean over seeds with the range as a band."""
-    fig, axes = subplots(1, len(s.scenarios), figsize=(3.4 * len(s.scenarios), 3.2))
-    for ax, name in zip(np.atleast_1d(axes), s.scenarios):
+    """One column per scenario. Top: each learner's greedy learning curve, mean over seeds with
+    the range as a band. Bottom: every final network's score on the evaluation seeds under each
+    read-out (the learner's runs as dots, the IQM as a bar, the chosen read-out starred)."""
+    summary = summary or {}
+    n = len(s.scenarios)
+    fig, axes = subplots(2, n, figsize=(3.4 * n, 6.2), squeeze=False)
+    for k, name in enumerate(s.scenarios):
+        ax, low = axes[0][k], axes[1][k]
         if not any(j.scenario == name and run_key(j) in results for j in runs):
             ax.text(0.5, 0.5, "no runs saved yet", transform=ax.transAxes, ha="center", fontsize=8)
         for algorithm in s.algorithms:
@@ -599,10 +939,10 @@ def draw(
             ]
             if not curves:
                 continue
-            n = min(len(c) for c in curves)  # a curve's points fall at the same batches
-            x = np.mean([[p["decisions"] for p in c[:n]] for c in curves], axis=0)
+            m = min(len(c) for c in curves)  # a curve's points fall at the same batches
+            x = np.mean([[p["decisions"] for p in c[:m]] for c in curves], axis=0)
             y = np.array(
-                [[normalised(p["value_per_h"], refs[name]) for p in c[:n]] for c in curves]
+                [[normalised(p["value_per_h"], refs[name]) for p in c[:m]] for c in curves]
             )
             line = ax.plot(x, y.mean(axis=0), marker=".", label=f"{algorithm} (N={len(curves)})")
             ax.fill_between(x, y.min(axis=0), y.max(axis=0), alpha=0.2, color=line[0].get_color())
@@ -613,12 +953,44 @@ def draw(
         count_ticks(ax.xaxis)
         ax.set_ylabel(f"score, greedy (seed {CURVE_SEED})", fontsize=8)
         ax.legend(fontsize=7)
+        draw_readouts(low, s, name, summary, stay[name])
     fig.tight_layout()
     fig.savefig(path, dpi=110, format="png")
 
 
+def draw_readouts(
+    ax: Any, s: Settings, name: str, summary: Mapping[str, Mapping[str, Any]], stay: float
+) -> None:
+    """The final networks' scores under each read-out for one scenario (`summary`'s runs)."""
+    labels, position = [], 0
+    for algorithm in s.algorithms:
+        cell = summary.get(f"{name}/{algorithm}")
+        for readout in READOUTS:
+            star = "*" if cell is not None and cell["readout"] == readout else ""
+            labels.append(f"{algorithm}\n{readout}{star}")
+            if cell is not None:
+                scores = cell[readout]["scores"]
+                x = position + np.linspace(-0.15, 0.15, len(scores))
+                color = READOUT_COLOURS[readout]
+                ax.scatter(x, scores, s=12, color=color, alpha=0.8)
+                ax.hlines(cell[readout]["iqm"], position - 0.3, position + 0.3, color=color)
+            position += 1
+    if not any(f"{name}/{a}" in summary for a in s.algorithms):
+        ax.text(0.5, 0.5, "no read-outs saved yet", transform=ax.transAxes, ha="center", fontsize=8)
+    ax.axhline(stay, color="k", lw=0.8, ls="--", label="stay")
+    ax.axhline(0.0, color="grey", lw=0.5)
+    ax.set_xticks(range(len(labels)))
+    ax.set_xticklabels(labels, fontsize=7)
+    ax.set_xlim(-0.6, len(labels) - 0.4)
+    ax.set_ylabel("score, evaluation seeds", fontsize=8)
+    ax.set_title("final networks (* chosen)", fontsize=8)
+    ax.legend(fontsize=7)
+
+
 def run(settings: Settings) -> Outcome:
-    """Run (or resume) the runs not yet saved (at most `max_jobs`), then report every saved run."""
+    """Train (or resume) the runs not yet saved (at most `max_jobs`), read out every saved
+    network both ways not yet read out (at most `max_evaluations`; never training), then report
+    everything saved."""
     s = settings.sized()
     out = s.out_dir()
     networks = out / NETWORKS
@@ -631,15 +1003,31 @@ def run(settings: Settings) -> Outcome:
     else:
         provenance = _stored_provenance(out)
     results = saved_results(every, RUNS, out / JOBS)
-    rep = report(s, every, results, provenance)
+    planned = readout_jobs(s, every, results, networks)
+    read = saved_results(planned, EVALUATIONS, out / READOUT_JOBS_DIR)
+    pending = [j for j in planned if readout_key(j) not in read]
+    pending = pending if s.max_evaluations is None else pending[: s.max_evaluations]
+    if pending:
+        _, readout_provenance = s.run_jobs(
+            pending,
+            EVALUATIONS,
+            READOUT_JOBS_DIR,
+            provenance_in=READOUT_JOBS_DIR,
+            wall_of=lambda r: float(r["wall_s"]),
+        )
+    else:
+        readout_provenance = _stored_provenance(out / READOUT_JOBS_DIR, fallback=False)
+    evaluations = saved_results(planned, EVALUATIONS, out / READOUT_JOBS_DIR)
+    rep = report(s, every, results, provenance, evaluations, readout_provenance)
     written = rep.write(out, provenance)
     return Outcome(out, written, rep.body)
 
 
-def _stored_provenance(out: Path) -> dict[str, Any]:
+def _stored_provenance(out: Path, fallback: bool = True) -> dict[str, Any]:
     from tavc_agents.experiments.provenance import load_provenance, run_metadata
 
-    return load_provenance(out) or run_metadata(settings={})
+    stored = load_provenance(out) if out.is_dir() else None
+    return stored or (run_metadata(settings={}) if fallback else {})
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,5 +1,6 @@
-"""The deep leaderboard at a tiny budget: a run end to end (training, curve, evaluation, report),
-resume without retraining, and settings it refuses (marker `marl`: needs TorchRL)."""
+"""The deep leaderboard at a tiny budget: a run end to end (training, curve, evaluation, both
+read-outs, report), resume without retraining or reading out again, and settings it refuses
+(marker `marl`: needs TorchRL)."""
 
 from __future__ import annotations
 
@@ -43,6 +44,9 @@ def test_a_tiny_run_trains_evaluates_reports_and_resumes_without_training(
     assert saved["curve"][-1]["decisions"] == saved["decisions"]
     assert len(saved["eval_values_per_h"]) == 2
     assert (tmp_path / "networks" / "dahl2004__ippo__seed0.npz").stat().st_size < 100_000
+    for readout in ("sampled", "greedy"):  # the saved network read out both ways
+        path = tmp_path / "readouts" / f"dahl2004__ippo__seed0__{readout}.json"
+        assert len(json.loads(path.read_text())["result"]["eval_values_per_h"]) == 2
     assert "| tavc/dahl2004-v0 | ippo | 1 |" in outcome.text
     assert (tmp_path / "deep_leaderboard.csv").is_file()
 
@@ -75,7 +79,7 @@ def test_team_credit_gives_every_robot_the_steps_mean_reward_and_trains(tmp_path
 
 def test_the_report_renders_with_no_run_saved(tmp_path: Path) -> None:
     outcome = study.run(tiny(tmp_path, max_jobs=0))
-    assert "| tavc/dahl2004-v0 | ippo | 0 | - |" in outcome.text
+    assert "| tavc/dahl2004-v0 | ippo | 0 | 0 | - |" in outcome.text
     assert "(no run saved yet)" in outcome.text
 
 
