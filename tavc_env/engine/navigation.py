@@ -710,6 +710,32 @@ def _run_ticks(
 run_ticks = compiled(_run_ticks)
 
 
+def _replay_commands(
+    c_calls: np.ndarray, commands: np.ndarray, velocities_in: np.ndarray, dt: float
+) -> None:
+    """The compiled physics floor (`tavc_env.measurement.compiled_floor`): every tick, the
+    recorded commands `commands[t]` (n, 2) written into the batch buffer `velocities_in`, then
+    the compiled tick's own Chipmunk calls (batch velocity write, `cpSpaceStep`, batch position
+    read), and nothing else. Every robot must be on the floor in index order (`World`'s
+    `in_order`)."""
+    space = c_calls[C_SPACE]
+    each = c_calls[C_EACH_BODY]
+    n = commands.shape[1]
+    for t in range(commands.shape[0]):
+        for i in range(n):
+            velocities_in[i, 0] = commands[t, i, 0]
+            velocities_in[i, 1] = commands[t, i, 1]
+        count = set_count(c_calls[C_SET_FLOATS], 0)
+        each_body(each, space, c_calls[C_SET_VISIT], c_calls[C_SET_DATA])
+        set_count(c_calls[C_SET_FLOATS], count)
+        space_step(c_calls[C_STEP], space, dt)
+        set_count(c_calls[C_GET_FLOATS], 0)
+        each_body(each, space, c_calls[C_GET_VISIT], c_calls[C_GET_DATA])
+
+
+replay_commands = compiled(_replay_commands)
+
+
 def compiled_cache_ready() -> bool | None:
     """Whether numba's disk cache holds the compiled tick (`run_ticks`) for this source, so that
     a trial starts at once; False if the first call will compile it (a fresh install or
