@@ -118,7 +118,7 @@ class ObservationBuilder:
         k += 1
         out[:, k : k + m] = np.clip(np.nan_to_num(last_task_s, nan=0.0) / TIME_SCALE_S, 0.0, 1.0)
         k += m
-        serving = (tasks.phase == Phase.TO_SOURCE) | (tasks.phase == Phase.TO_SINK)
+        serving = (tasks.phase == int(Phase.TO_SOURCE)) | (tasks.phase == int(Phase.TO_SINK))
         counts = np.bincount(tasks.circuit[serving], minlength=m)[:m]
         out[:, k : k + m] = counts / n
         k += m

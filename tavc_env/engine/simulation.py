@@ -40,6 +40,7 @@ from tavc_env.engine.navigation import (
 from tavc_env.engine.tasks import Phase, TaskCycle
 from tavc_env.engine.world import World
 
+_BROKEN = int(Phase.BROKEN)  # a plain int: no enum lookup per comparison
 JAM_MOTION_M = 1.0  # ... while no moving robot got this far from where the window began
 
 
@@ -196,7 +197,7 @@ class Simulation:
             self.top_speed[robot] = self.speeds[robot] * self.speed_factor[robot]
 
     def break_down(self, robot: int) -> None:
-        if self.tasks.phase[robot] == Phase.BROKEN:
+        if self.tasks.phase[robot] == _BROKEN:
             return
         self.tasks.break_down(robot)
         self.world.remove_robot(robot)
@@ -209,10 +210,10 @@ class Simulation:
         add_repair(self._schedule, self.time_s, robot)
 
     def is_broken(self, robot: int) -> bool:
-        return bool(self.tasks.phase[robot] == Phase.BROKEN)
+        return bool(self.tasks.phase[robot] == _BROKEN)
 
     def repair(self, robot: int) -> None:
-        if self.tasks.phase[robot] != Phase.BROKEN:
+        if self.tasks.phase[robot] != _BROKEN:
             return
         self.world.restore_robot(robot, self.rng)
         self.world.sync_positions()
@@ -507,7 +508,7 @@ class Simulation:
         return _read_only(self.tasks.values)
 
     def broken(self) -> np.ndarray:
-        return self.tasks.phase == Phase.BROKEN
+        return self.tasks.phase == _BROKEN
 
     def snapshot(self) -> ArenaSnapshot:
         """The arena now, as copies (for drawing, recording or comparing)."""
