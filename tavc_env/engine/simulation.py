@@ -33,6 +33,7 @@ from tavc_env.engine.navigation import (
     Navigator,
     TickArgs,
     after_step,
+    grid_scratch,
     neighbour_cell_m,
     run_ticks,
     stuck,
@@ -41,6 +42,15 @@ from tavc_env.engine.tasks import Phase, TaskCycle
 from tavc_env.engine.world import World
 
 _BROKEN = int(Phase.BROKEN)  # a plain int: no enum lookup per comparison
+_GRID_FIELDS = (
+    "grid_cx",
+    "grid_cy",
+    "grid_key",
+    "grid_order",
+    "grid_keys",
+    "grid_others",
+    "grid_held",
+)
 JAM_MOTION_M = 1.0  # ... while no moving robot got this far from where the window began
 
 
@@ -279,6 +289,8 @@ class Simulation:
             patience_s=STUCK_PATIENCE_S,
             arrived=self._hits,
             stalled=self._stalled,
+            everyone=np.arange(self.config.n_robots),
+            **dict(zip(_GRID_FIELDS, grid_scratch(self.config.n_robots))),
         )
         # the world itself too: a new World starts counting versions anew, and the compiled
         # tick must never call into the C space of one that is gone
