@@ -573,6 +573,7 @@ def _stuck_of(
 
 
 _stuck_of_c = compiled(_stuck_of)
+stuck_of = _stuck_of_c
 stuck = compiled(_stuck)
 
 

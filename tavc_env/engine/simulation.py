@@ -36,7 +36,7 @@ from tavc_env.engine.navigation import (
     grid_scratch,
     neighbour_cell_m,
     run_ticks,
-    stuck,
+    stuck_of,
 )
 from tavc_env.engine.tasks import Phase, TaskCycle
 from tavc_env.engine.world import World
@@ -201,9 +201,8 @@ class Simulation:
     def _new_leg(self, robot: int) -> None:
         noise = self.config.speed_noise
         if noise > 0:
-            self.speed_factor[robot] = float(
-                np.clip(1.0 + noise * self.rng.standard_normal(), 0.5, 1.5)
-            )
+            # np.clip's value, without its cost on a scalar (the draw is never NaN)
+            self.speed_factor[robot] = min(max(1.0 + noise * self.rng.standard_normal(), 0.5), 1.5)
             self.top_speed[robot] = self.speeds[robot] * self.speed_factor[robot]
 
     def break_down(self, robot: int) -> None:
@@ -212,7 +211,7 @@ class Simulation:
         self.tasks.break_down(robot)
         self.world.remove_robot(robot)
         self._pos = self.world.pos  # the world may now keep positions in another array
-        self._next_service = float(self.tasks.service_until.min())
+        self._next_service = min(self.tasks.service_until.tolist())
 
     def schedule_repair(self, robot: int) -> None:
         """Repair `robot` at the end of the next tick, so the repair is a decision epoch like any
@@ -367,11 +366,11 @@ class Simulation:
         if schedule_due:
             self._run_schedule(now, out)
         if n_stalled < 0:
-            active = tasks.moving & self.world.in_space
-            n_stalled = stuck(
+            n_stalled = stuck_of(
                 self._pos,
                 tasks.target,
-                active,
+                tasks.moving,
+                self.world.in_space,
                 self._anchor,
                 self._anchor_time,
                 now,
@@ -381,7 +380,7 @@ class Simulation:
         for k in range(n_stalled):
             self._escape(int(self._stalled[k]), now)
         if services_due or n_arrived or schedule_due:
-            self._next_service = float(tasks.service_until.min())
+            self._next_service = min(tasks.service_until.tolist())  # np.min's value, cheaper
             self._progress(now)
         elif now - self._progress_s >= self.jam_window_s:
             self._check_jam(now)
