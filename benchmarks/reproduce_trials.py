@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -35,7 +34,7 @@ import tyro
 from tavc_agents.experiments.files import RECORD_MAX_BYTES, read_bytes
 from tavc_agents.experiments.packs import read_saved, saved_paths
 from tavc_agents.experiments.runner import Event, TrialResult
-from tavc_agents.experiments.study import Outcome, run_study
+from tavc_agents.experiments.study import Outcome, parse_settings
 from tavc_agents.experiments.sweep import TrialSpec, run_spec
 
 IGNORED = ("wall_s", "spec")  # wall-clock time; the spec itself is what is re-run
@@ -135,8 +134,11 @@ def all_reproduced(outcome: Outcome) -> bool:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """The study's command line."""
-    return run_study(sys.modules[__name__], argv, __doc__ or "")
+    """The command line: it writes nothing, so it runs without a study's output folder; the exit
+    status is 1 if any trial differs."""
+    outcome = run(parse_settings(Settings, argv, __doc__ or ""))
+    print(outcome.text)
+    return 0 if all_reproduced(outcome) else 1
 
 
 if __name__ == "__main__":

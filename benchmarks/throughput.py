@@ -1,4 +1,4 @@
-"""Throughput of the arena at 6, 24 and 96 robots (and 384), in CPU time, against two yardsticks
+"""Throughput of the arena at 6, 24 and 96 robots (and 384), in CPU time, against three yardsticks
 of the same physics.
 
 Each case (`dahl2004` for 6 robots; `tavc_env.scaled_config(n_circuits, 3)` for 24, 96 and 384:
@@ -7,6 +7,10 @@ every `--interval-s` simulated seconds) runs in a process of its own, every robo
 picking a circuit uniformly at random (seeded):
 
 * `env`: the PettingZoo parallel env: simulated seconds, ticks and decisions per CPU second;
+* `compiled floor`: the env's own velocity commands of the same run, recorded, then replayed in a
+  compiled loop through the very Chipmunk calls the env's compiled tick makes (batch velocity
+  write, `cpSpaceStep`, batch position read), no Python per tick (it must end exactly where the
+  env ended): what the physics alone costs, the floor the env can approach;
 * `replay`: the env's own velocity commands of the same run, recorded, then set tick after tick
   on a bare pymunk world of the same bodies (it must end exactly where the env ended);
 * `bare loop`: the same bodies (same radius, mass, dt, solver iterations, walls) placed as at
@@ -15,8 +19,10 @@ picking a circuit uniformly at random (seeded):
 Times are CPU seconds of the measuring process (`time.process_time`), so other processes on a
 shared machine do not count; the cases take turns round after round (`--repeats`), and the
 machine's load average is recorded with every row. Reported: speeds, env / replay and env / bare
-loop (ticks per CPU second, paired by round), peak memory. Goal (issue 24): at 6 robots at least
-0.95 of the bare loop and 0.5 of the replay; the exit status is 1 if it is missed. Writes
+loop and env / compiled floor (ticks per CPU second, paired by round), peak memory. Goal (issue
+24): at 6 robots at least 0.95 of the bare loop and 0.5 of the replay; the exit status is 1 if it
+is missed. Goals of issue 38 against the compiled floor (reported, not yet enforced): 6 robots
+>= 0.45, 96 robots >= 0.5, 6 robots every 1 s >= 0.25. Writes
 `throughput.{csv,md,json}` into a new run folder under runs/ (git ignores it), `--out`, or with
 `--update-reference` benchmarks/results/throughput/.
 
@@ -24,12 +30,14 @@ loop (ticks per CPU second, paired by round), peak memory. Goal (issue 24): at 6
     python benchmarks/throughput.py --dt 0.2 --sizes 6 96 --out benchmarks/results/throughput_dt0.2
     python benchmarks/throughput.py --quick
 
-Throughput of the arena by team size against two yardsticks of the same physics, in CPU time.
+Throughput of the arena by team size against three yardsticks of the same physics, in CPU time.
 
 For each case (a team size, event-driven or fixed-interval stepping) the PettingZoo env runs with
 random choices (`arena_runs.random_choice_run`), and beside it, in the
 same process and round:
 
+* `compiled floor`: the env's own velocity commands of that run replayed in a compiled loop
+  through the Chipmunk calls of the env's compiled tick (`compiled_floor`); exact like the replay;
 * `floor`: a bare pymunk loop of the same bodies (the engine's `World`: same radius, mass, dt,
   solver iterations and walls), velocities set once (`physics_floor`);
 * `replay`: the env's own velocity commands of that run, recorded and set tick after tick on a
@@ -61,13 +69,15 @@ from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.study import Outcome, StudySettings, run_study
 from tavc_env.config import ArenaConfig
-from tavc_env.measurement import physics_floor, physics_replay
+from tavc_env.measurement import compiled_floor, physics_floor, physics_replay
 
 SIM_HOURS = {6: 5.0, 24: 1.0, 96: 0.25, 384: 0.05}  # per repeat, about a CPU second or less each
 # Goals (issue 24): at 6 robots the public parallel API reaches 95 % of the bare loop's speed
 # and half of its own replayed physics, in CPU time.
 FLOOR_GOAL = 0.95
 REPLAY_GOAL = 0.5
+# Goals (issue 38) against the compiled physics floor, by case: reported, not yet enforced
+COMPILED_GOALS = {"6": 0.45, "96": 0.5, "6 every 1 s": 0.25}
 Row = dict[str, Any]
 
 
@@ -149,6 +159,7 @@ def run_case(
     measures: list[tuple[str, Any]] = [
         ("env", lambda: random_choice_run(config, rep, sim_s, interval_s)),
         ("replay", lambda: physics_replay(config, recorded)),
+        ("compiled", lambda: compiled_floor(config, recorded)),
         ("floor", lambda: physics_floor(config, rep, int(recorded["ticks"]), each_tick=False)),
     ]
     for mode, measure in measures:
@@ -186,12 +197,15 @@ def measure_cases(s: Settings) -> list[Row]:
 def case_findings(rows: Sequence[Row], config: ArenaConfig) -> tuple[list[Any], Row]:
     """One case's table row and JSON summary: speeds and the env's share of both yardsticks
     (ticks per CPU second, paired by round)."""
-    by_mode = {m: [r for r in rows if r["mode"] == m] for m in ("env", "replay", "floor")}
+    modes = ("env", "replay", "floor", "compiled")
+    by_mode = {m: [r for r in rows if r["mode"] == m] for m in modes}
     env, replay, floor = by_mode["env"], by_mode["replay"], by_mode["floor"]
+    cfloor = by_mode["compiled"]
     speed = mean_ci([r["sim_s_per_cpu_s"] for r in env])
     to_floor = mean_ci([f["us_per_tick"] / e["us_per_tick"] for e, f in zip(env, floor)])
     to_replay = mean_ci([p["us_per_tick"] / e["us_per_tick"] for e, p in zip(env, replay)])
-    exact = all(r["exact"] for r in replay)
+    to_compiled = mean_ci([c["us_per_tick"] / e["us_per_tick"] for e, c in zip(env, cfloor)])
+    exact = all(r["exact"] for r in replay + cfloor)
     name = env[0]["case"]
     verdict = "-"
     if name == "6":
@@ -200,6 +214,10 @@ def case_findings(rows: Sequence[Row], config: ArenaConfig) -> tuple[list[Any], 
             f"{'PASS' if ok else 'FAIL'} (>= {FLOOR_GOAL:g} of the bare loop, "
             f">= {REPLAY_GOAL:g} of the replay)"
         )
+    goal38 = COMPILED_GOALS.get(name)
+    verdict38 = "-"
+    if goal38 is not None:
+        verdict38 = f"{'met' if to_compiled[0] >= goal38 else 'not yet'} (>= {goal38:g})"
     loads = [r["load_1min"] for r in rows]
     cells = [
         name,
@@ -209,6 +227,9 @@ def case_findings(rows: Sequence[Row], config: ArenaConfig) -> tuple[list[Any], 
         fmt_ci(*mean_ci([r["decisions_per_cpu_s"] for r in env])[:3], 0),
         fmt_ci(*mean_ci([r["us_per_tick"] for r in replay])[:3], 1),
         fmt_ci(*mean_ci([r["us_per_tick"] for r in floor])[:3], 1),
+        fmt_ci(*mean_ci([r["us_per_tick"] for r in cfloor])[:3], 2),
+        fmt_ci(*to_compiled[:3], 3),
+        verdict38,
         fmt_ci(*to_replay[:3], 3),
         fmt_ci(*to_floor[:3], 3),
         "yes" if exact else "NO",
@@ -221,6 +242,10 @@ def case_findings(rows: Sequence[Row], config: ArenaConfig) -> tuple[list[Any], 
         "us_per_tick": mean_ci([r["us_per_tick"] for r in env])[0],
         "ratio_to_replay": to_replay[0],
         "ratio_to_floor": to_floor[0],
+        "ratio_to_compiled_floor": to_compiled[0],
+        "ratio_to_compiled_floor_ci": [to_compiled[1], to_compiled[2]],
+        "compiled_floor_us_per_tick": mean_ci([r["us_per_tick"] for r in cfloor])[0],
+        "compiled_goal": verdict38,
         "replay_exact": exact,
         "load_1min": [min(loads), max(loads)],
         "arena_m": [config.width, config.height],
@@ -238,9 +263,12 @@ HEADER = [
     "decisions / CPU s",
     "replay us / tick",
     "bare loop us / tick",
+    "compiled floor us / tick",
+    "env / compiled floor",
+    "compiled-floor goal (issue 38)",
     "env / replay",
     "env / bare loop",
-    "replay exact",
+    "replays exact",
     "load (1 min)",
     "peak MiB",
     "goal",
@@ -263,10 +291,14 @@ def build_report(rows: Sequence[Row], s: Settings) -> Report:
             "API, every deciding robot choosing at random (event-driven stepping, or one step "
             f"every {s.interval_s:g} simulated s for 'every'). 'replay': the env's own velocity "
             "commands of the same run set tick after tick on a bare pymunk world of the same "
-            "bodies (it must end exactly where the env ended: 'replay exact'). 'bare loop': the "
+            "bodies (it must end exactly where the env ended: 'replays exact'). 'compiled floor': "
+            "the same commands replayed in a compiled loop through the Chipmunk calls the env's "
+            "compiled tick makes (batch velocity write, cpSpaceStep, batch position read), no "
+            "Python per tick: the physics alone, the floor the env can approach (exact too). "
+            "'bare loop': the "
             "same bodies with velocities set once, pymunk stepping alone (its discs keep hitting "
             "walls, which costs more than the env's free driving). 'env / replay' and "
-            "'env / bare loop' are ticks per CPU second, env over yardstick, paired by round. "
+            "'env / bare loop' and 'env / compiled floor' are ticks per CPU second, env over yardstick, paired by round. "
             "Peak MiB is the case's process's maximum resident memory.",
             "",
             markdown_table(HEADER, [cells for cells, _ in found.values()]),

@@ -89,6 +89,7 @@ from tavc_env.validation import is_integer, is_number, require
 ENV_NAME = "tavc_arena_v1"
 # The names of the `phase` codes in infos: PHASES[info["phase"]]
 PHASES = tuple(PHASE_NAMES[p] for p in Phase)
+_BROKEN = int(Phase.BROKEN)
 
 
 E = TypeVar("E", bound=Engine)
@@ -219,8 +220,9 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         truncated = (
             self.num_cycles >= opts.max_cycles or self.sim.time_s >= opts.max_sim_time_s - 1e-9
         )
-        observations = self._observations()
-        infos = self._infos(truncated)
+        deciding = self.sim.tasks.needs_decision()  # once for the observations, masks and infos
+        observations = self._observations(deciding)
+        infos = self._infos(truncated, deciding)
         terminations = dict.fromkeys(self.agents, False)
         truncations = dict.fromkeys(self.agents, truncated)
         if truncated:
@@ -469,45 +471,59 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
             self._last_task_by_circuit[c.robot, c.circuit] = float(c.task_time_s)
         return rewards
 
-    def _observations(self) -> dict[str, Any]:
+    def _observations(self, deciding: np.ndarray | None = None) -> dict[str, Any]:
+        """Every agent's observation; `deciding`: `needs_decision()` if the caller has it."""
         vectors = self._builder.build(self.sim, self._last_task_by_circuit)
         if self.options.observation_format == "box":
             return {agent: vectors[self._index[agent]] for agent in self.agents}
-        masks = self._masks()
+        masks = self._masks(deciding)
         return {
             agent: {"observation": vectors[i], "action_mask": masks[i]}
             for agent in self.agents
             for i in (self._index[agent],)
         }
 
-    def _masks(self) -> list[np.ndarray]:
+    def _masks(self, deciding: np.ndarray | None = None) -> list[np.ndarray]:
         tasks = self.sim.tasks
-        deciding = tasks.needs_decision()
+        if deciding is None:
+            deciding = tasks.needs_decision()
         busy, free = self._busy_mask, self._free_mask
-        return [free if d else busy[c] for d, c in zip(deciding, tasks.circuit)]
+        return [free if d else busy[c] for d, c in zip(_plain(deciding), _plain(tasks.circuit))]
 
-    def _infos(self, truncated: bool) -> dict[str, dict[str, Any]]:
+    def _infos(
+        self, truncated: bool, deciding: np.ndarray | None = None
+    ) -> dict[str, dict[str, Any]]:
+        """Every agent's info; `deciding`: `needs_decision()` if the caller has it. Built from
+        each array read once as Python numbers (not a numpy scalar per agent and key)."""
         tasks = self.sim.tasks
-        now = self.sim.time_s
-        deciding = tasks.needs_decision()
+        now = float(self.sim.time_s)
+        if deciding is None:
+            deciding = tasks.needs_decision()
         jammed = bool(self.sim.jammed)
-        masks = self._masks() if self.options.observation_format == "box" else None
+        masks = self._masks(deciding) if self.options.observation_format == "box" else None
+        required = [bool(d) and not truncated for d in _plain(deciding)]
+        phases = _plain(tasks.phase)
+        circuits = _plain(tasks.circuit)
+        decided = _plain(tasks.decision_time)
+        completed = _plain(tasks.completed)
+        task_times = self._last_task_time.tolist()
+        task_values = self._last_task_value.tolist()
         infos: dict[str, dict[str, Any]] = {}
         for agent in self.agents:
             i = self._index[agent]
-            phase = int(tasks.phase[i])
-            done = not math.isnan(self._last_task_time[i])
+            phase = phases[i]
+            done = not math.isnan(task_times[i])
             infos[agent] = {
-                "action_required": bool(deciding[i]) and not truncated,
-                "circuit": int(tasks.circuit[i]),
+                "action_required": required[i],
+                "circuit": circuits[i],
                 "phase": phase,
-                "broken": phase == Phase.BROKEN,
+                "broken": phase == _BROKEN,
                 "task_completed": done,
-                "task_time_s": float(self._last_task_time[i]) if done else 0.0,
-                "task_value": float(self._last_task_value[i]) if done else 0.0,
-                "elapsed_s": float(now - tasks.decision_time[i]),
-                "sim_time_s": float(now),
-                "completed_tasks": int(tasks.completed[i]),
+                "task_time_s": task_times[i] if done else 0.0,
+                "task_value": task_values[i] if done else 0.0,
+                "elapsed_s": now - decided[i],
+                "sim_time_s": now,
+                "completed_tasks": completed[i],
                 "jammed": jammed,
             }
             if masks is not None:
@@ -588,6 +604,12 @@ class TavcArenaEnv(ArenaEnv[Simulation]):
     def snapshot(self) -> ArenaSnapshot:
         """The arena now: positions, headings, targets, circuits, phases (copies)."""
         return self.sim.snapshot()
+
+
+def _plain(values: Any) -> list[Any]:
+    """An engine's per-robot array (the physics) or list (the twin) as a list of Python
+    numbers, read at once."""
+    return values.tolist() if isinstance(values, np.ndarray) else values
 
 
 def completed_task_s(info: Mapping[str, Any]) -> float | None:

@@ -1,7 +1,8 @@
 """Measuring the physics engine: runs with fixed allocations, an observer that counts the ticks
 each robot spends in each mode of its task (`ModeTicks`, by `Mode`), one that watches the spacing
 between robots (`SpacingMonitor`), and the bare-physics yardsticks of the engine's speed
-(`CommandRecorder`, `physics_replay`, `physics_floor`; the env's own speed is timed by
+(`CommandRecorder`, `compiled_floor`, `physics_replay`, `physics_floor`; the env's own speed is
+timed by
 `benchmarks/arena_runs.py`).
 
 Observers attach with `Simulation.add_observer` and only read the simulation's public views, so a
@@ -31,6 +32,7 @@ from tavc_env.config import ArenaConfig, make_config
 # is cached (a first run compiles it)
 from tavc_env.engine.navigation import STUCK_PATIENCE_S as STUCK_PATIENCE_S
 from tavc_env.engine.navigation import compiled_cache_ready as compiled_cache_ready
+from tavc_env.engine.navigation import replay_commands
 from tavc_env.engine.simulation import JAM_MOTION_M as JAM_MOTION_M
 from tavc_env.engine.simulation import EngineEvent, Simulation
 from tavc_env.engine.tasks import PHASE_NAMES as PHASE_NAMES
@@ -302,6 +304,35 @@ def physics_replay(config: ArenaConfig, recorded: dict[str, Any]) -> dict[str, A
     ticks = len(commands)
     exact = bool(np.array_equal(world.positions(), recorded["end"]))
     return {"cpu_s": cpu, "wall_s": wall, "sim_s": ticks * dt, "ticks": ticks, "exact": exact}
+
+
+def compiled_floor(config: ArenaConfig, recorded: dict[str, Any]) -> dict[str, Any]:
+    """The compiled physics floor: the velocity commands of a recorded run
+    (`random_choice_run(..., record=True)`) replayed on a bare `World` placed where the run
+    began, in a compiled loop through the very Chipmunk calls the env's compiled tick makes
+    (batch velocity write, `cpSpaceStep`, batch position read: `navigation.replay_commands`), with
+    no Python per tick. What the env's physics costs with nothing around it: the env can only
+    approach it. `exact`: the replay ended exactly where the run ended."""
+    world = bare_world(config, recorded["start"])
+    commands = np.ascontiguousarray(recorded["commands"], dtype=np.float64)
+    if not world.scatter().in_order:
+        raise ValueError("the compiled floor needs the robots in the space in index order")
+    velocities_in = world.scatter().velocities_in
+    replay_commands(world.c_calls, commands[:1], velocities_in, 0.0)  # compiled, untimed
+    world = bare_world(config, recorded["start"])  # anew: a step of 0 s is still a step
+    velocities_in = world.scatter().velocities_in
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    replay_commands(world.c_calls, commands, velocities_in, config.dt)
+    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    ticks = len(commands)
+    exact = bool(np.array_equal(world.positions(), recorded["end"]))
+    return {
+        "cpu_s": cpu,
+        "wall_s": wall,
+        "sim_s": ticks * config.dt,
+        "ticks": ticks,
+        "exact": exact,
+    }
 
 
 def physics_floor(config: ArenaConfig, seed: int, ticks: int, each_tick: bool) -> dict[str, float]:

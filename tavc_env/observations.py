@@ -91,13 +91,11 @@ class ObservationBuilder:
     def build(self, sim: Any, last_task_s: np.ndarray) -> list[np.ndarray]:
         """Every robot's observation now. `last_task_s[i, c]`: robot i's last task time on
         circuit c in seconds (NaN: none yet)."""
-        circuit = sim.tasks.circuit
-        n = self.config.n_robots
         if self.mode == "paper":
             row = self._constant[0]
-            return [row[c] for c in circuit]
+            return [row[c] for c in _plain(sim.tasks.circuit)]
         if self.mode == "paper_id":
-            return [self._constant[i][circuit[i]] for i in range(n)]
+            return [rows[c] for rows, c in zip(self._constant, _plain(sim.tasks.circuit))]
         return list(self._rich(sim, last_task_s))
 
     def _rich(self, sim: Any, last_task_s: np.ndarray) -> np.ndarray:
@@ -118,7 +116,7 @@ class ObservationBuilder:
         k += 1
         out[:, k : k + m] = np.clip(np.nan_to_num(last_task_s, nan=0.0) / TIME_SCALE_S, 0.0, 1.0)
         k += m
-        serving = (tasks.phase == Phase.TO_SOURCE) | (tasks.phase == Phase.TO_SINK)
+        serving = (tasks.phase == int(Phase.TO_SOURCE)) | (tasks.phase == int(Phase.TO_SINK))
         counts = np.bincount(tasks.circuit[serving], minlength=m)[:m]
         out[:, k : k + m] = counts / n
         k += m
@@ -139,6 +137,11 @@ def pose_features(sim: Any, config: ArenaConfig, speed: float | np.ndarray) -> n
     out[:, 3] = np.sin(sim.heading)
     out[:, 4:6] = np.clip(sim.world.velocities() / speed, -1.0, 1.0)
     return out
+
+
+def _plain(values: Any) -> list[Any]:
+    """Per-robot values, an array (the physics) or a list (the twin), as a list."""
+    return values.tolist() if isinstance(values, np.ndarray) else values
 
 
 def frozen(array: np.ndarray) -> np.ndarray:

@@ -33,8 +33,10 @@ class TavcArenaEnvV0(TavcArenaEnv):
                 value == v0, name, value, f"{v0!r} (v0 has no other; use tavc_env.parallel_env)"
             )
 
-    def _infos(self, truncated: bool) -> dict[str, dict[str, Any]]:
-        infos = super()._infos(truncated)
+    def _infos(
+        self, truncated: bool, deciding: np.ndarray | None = None
+    ) -> dict[str, dict[str, Any]]:
+        infos = super()._infos(truncated, deciding)
         for info in infos.values():
             info["phase"] = PHASES[info["phase"]]
             info["task_time_s"] = completed_task_s(info)

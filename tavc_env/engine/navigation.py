@@ -261,8 +261,33 @@ def _steer_all(
     out_heading: np.ndarray,
 ) -> None:
     """Every robot's command, each considering every other robot (O(n^2); best for small teams)."""
+    _steer_pairs_c(
+        pos, heading, target, moving, top_speed, present, radius, sensing, governor, overtaking,
+        turn_step, width, height, out_velocity, out_heading, np.arange(pos.shape[0]),
+    )  # fmt: skip
+
+
+def _steer_pairs(
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    governor: float,
+    overtaking: bool,
+    turn_step: float,
+    width: float,
+    height: float,
+    out_velocity: np.ndarray,
+    out_heading: np.ndarray,
+    everyone: np.ndarray,
+) -> None:
+    """`steer_all` with `everyone` = arange(n) given (the compiled tick allocates it once per
+    call, not once per tick)."""
     n = pos.shape[0]
-    everyone = np.arange(n)
     for i in range(n):
         _steer_one_c(
             i,
@@ -284,6 +309,9 @@ def _steer_all(
             out_velocity,
             out_heading,
         )
+
+
+_steer_pairs_c = compiled(_steer_pairs)
 
 
 def neighbour_cell_m(radius: float, sensing: float) -> float:
@@ -334,13 +362,66 @@ def _steer_all_grid(
 
     The grid is sparse: the robots on the floor are sorted by cell (row-major cell number, then
     index) and each row of three cells is found by binary search, so memory and time do not grow
-    with the arena's area (a dense table of every cell died with MemoryError in a 1e5 m arena)."""
+    with the arena's area (a dense table of every cell died with MemoryError in a 1e5 m arena).
+    (`steer_grid_into` with scratch arrays of its own; the compiled tick keeps them.)"""
+    n = pos.shape[0]
+    _steer_grid_into_c(
+        pos, heading, target, moving, top_speed, present, radius, sensing, governor, overtaking,
+        turn_step, width, height, out_velocity, out_heading, cell, np.zeros(n, np.int64),
+        np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64),
+        np.zeros(n, np.int64), np.zeros(n, np.int64), np.full(1, -1, np.int64),
+    )  # fmt: skip
+
+
+def grid_scratch(n: int) -> tuple[np.ndarray, ...]:
+    """The neighbour grid's working arrays for n robots: cell x, cell y, cell number, the robots
+    on the floor sorted by (cell number, index), their cell numbers, a robot's neighbours, and
+    [how many robots `order` holds, -1: none yet]."""
+    return (
+        np.zeros(n, np.int64),
+        np.zeros(n, np.int64),
+        np.zeros(n, np.int64),
+        np.zeros(n, np.int64),
+        np.zeros(n, np.int64),
+        np.zeros(n, np.int64),
+        np.full(1, -1, np.int64),
+    )
+
+
+def _steer_grid_into(
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    governor: float,
+    overtaking: bool,
+    turn_step: float,
+    width: float,
+    height: float,
+    out_velocity: np.ndarray,
+    out_heading: np.ndarray,
+    cell: float,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    key: np.ndarray,
+    order: np.ndarray,
+    keys: np.ndarray,
+    others: np.ndarray,
+    held: np.ndarray,
+) -> None:
+    """`steer_all_grid` on scratch arrays (`grid_scratch`) kept from tick to tick: `order`, the
+    robots on the floor sorted by (cell number, index), is sorted again from the last tick's
+    order by insertion, which costs O(n) while few robots change cells, where a fresh sort cost
+    O(n log n) and its allocations every tick. The sorted order of distinct (cell, index) pairs
+    is unique, so it is the one a stable sort by cell number of the robots in index order gives:
+    the commands are those of `steer_all_grid` whatever the scratch held."""
     n = pos.shape[0]
     nx = max(int(width / cell) + 1, 1)
     ny = max(int(height / cell) + 1, 1)
-    cx = np.empty(n, np.int64)
-    cy = np.empty(n, np.int64)
-    key = np.empty(n, np.int64)
     n_present = 0
     for i in range(n):
         cx[i] = min(max(int(pos[i, 0] / cell), 0), nx - 1)
@@ -348,16 +429,31 @@ def _steer_all_grid(
         key[i] = cy[i] * nx + cx[i]
         if present[i]:
             n_present += 1
-    members = np.empty(n_present, np.int64)
-    k = 0
-    for i in range(n):
-        if present[i]:
-            members[k] = i
-            k += 1
-    # stable: robots of one cell stay in increasing index order
-    items = members[np.argsort(key[members], kind="mergesort")]
-    keys = key[items]
-    others = np.empty(n, np.int64)
+    valid = held[0] == n_present
+    if valid:  # the same robots on the floor (distinct indices, all present, as many)
+        for k in range(n_present):
+            if not present[order[k]]:
+                valid = False
+                break
+    if not valid:
+        k = 0
+        for i in range(n):
+            if present[i]:
+                order[k] = i
+                k += 1
+        held[0] = n_present
+    for a in range(1, n_present):  # insertion sort by (cell number, index)
+        v = order[a]
+        kv = key[v]
+        b = a - 1
+        while b >= 0 and (key[order[b]] > kv or (key[order[b]] == kv and order[b] > v)):
+            order[b + 1] = order[b]
+            b -= 1
+        order[b + 1] = v
+    for k in range(n_present):
+        keys[k] = key[order[k]]
+    items = order[:n_present]
+    keys_in = keys[:n_present]
     for i in range(n):
         m = 0
         x0 = max(cx[i] - 1, 0)
@@ -369,9 +465,9 @@ def _steer_all_grid(
         for yy in range(y0, y1):
             # cells x0..x1 of row yy are the consecutive cell numbers row + x0 .. row + x1: one
             # search for the first, then the sorted keys in order up to the last
-            k = _first_at_least_c(keys, yy * nx + x0)
+            k = _first_at_least_c(keys_in, yy * nx + x0)
             end = yy * nx + x1 + 1
-            while k < n_present and keys[k] < end:
+            while k < n_present and keys_in[k] < end:
                 others[m] = items[k]
                 m += 1
                 k += 1
@@ -405,6 +501,8 @@ def _steer_all_grid(
         )
 
 
+_steer_grid_into_c = compiled(_steer_grid_into)
+steer_grid_into = _steer_grid_into_c
 steer_all_grid = compiled(_steer_all_grid)
 GRID_MIN_ROBOTS = 16  # from this team size on the grid is faster than all pairs
 steer_all = compiled(_steer_all)
@@ -437,6 +535,20 @@ def _stuck(
     patience_s: float,
     out: np.ndarray,
 ) -> int:
+    return _stuck_of_c(pos, target, active, active, anchor, anchor_time, now, patience_s, out)
+
+
+def _stuck_of(
+    pos: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    present: np.ndarray,
+    anchor: np.ndarray,
+    anchor_time: np.ndarray,
+    now: float,
+    patience_s: float,
+    out: np.ndarray,
+) -> int:
     """Robots making no progress: write into `out` every active robot, away from its target, that
     has stayed within `STUCK_RADIUS_M` of its anchor for `patience_s`; return how many. Anchors
     (position and time) follow each robot whenever it moves further than that, or is inactive or
@@ -447,7 +559,9 @@ def _stuck(
         dy = pos[i, 1] - anchor[i, 1]
         tx = target[i, 0] - pos[i, 0]
         ty = target[i, 1] - pos[i, 1]
-        waiting = (not active[i]) or tx * tx + ty * ty <= STUCK_RADIUS_M * STUCK_RADIUS_M
+        waiting = (
+            not (moving[i] and present[i])
+        ) or tx * tx + ty * ty <= STUCK_RADIUS_M * STUCK_RADIUS_M
         if waiting or dx * dx + dy * dy > STUCK_RADIUS_M * STUCK_RADIUS_M:
             anchor[i, 0] = pos[i, 0]
             anchor[i, 1] = pos[i, 1]
@@ -458,6 +572,8 @@ def _stuck(
     return k
 
 
+_stuck_of_c = compiled(_stuck_of)
+stuck_of = _stuck_of_c
 stuck = compiled(_stuck)
 
 
@@ -481,8 +597,9 @@ def _after_step(
     k = _arrivals_c(pos, target, trigger, arrived)
     if k > 0 or not stuck_too:
         return k, -1
-    active = moving & present
-    return 0, _stuck_c(pos, target, active, anchor, anchor_time, now, patience_s, stalled)
+    return 0, _stuck_of_c(
+        pos, target, moving, present, anchor, anchor_time, now, patience_s, stalled
+    )
 
 
 _arrivals_c = arrivals
@@ -613,6 +730,15 @@ class TickArgs(NamedTuple):
     patience_s: float
     arrived: np.ndarray
     stalled: np.ndarray
+    # scratch kept from call to call: arange(n) for all pairs, the neighbour grid's arrays
+    everyone: np.ndarray
+    grid_cx: np.ndarray
+    grid_cy: np.ndarray
+    grid_key: np.ndarray
+    grid_order: np.ndarray
+    grid_keys: np.ndarray
+    grid_others: np.ndarray
+    grid_held: np.ndarray
 
 
 def _run_ticks(
@@ -654,6 +780,14 @@ def _run_ticks(
     patience_s: float,
     arrived: np.ndarray,
     stalled: np.ndarray,
+    everyone: np.ndarray,
+    grid_cx: np.ndarray,
+    grid_cy: np.ndarray,
+    grid_key: np.ndarray,
+    grid_order: np.ndarray,
+    grid_keys: np.ndarray,
+    grid_others: np.ndarray,
+    grid_held: np.ndarray,
 ) -> tuple[int, int, int, int]:
     """Up to `max_ticks` ticks from tick number `ticks`. Returns (ticks run, QUIET / DUE /
     CHECKED, arrived count, stalled count) with the counts of `after_step` if CHECKED."""
@@ -669,14 +803,15 @@ def _run_ticks(
                 aim[i, 1] = src[i, 1]
             steer_at = aim
         if cell > 0.0:
-            steer_all_grid(
+            steer_grid_into(
                 pos, heading, steer_at, moving, top_speed, present, radius, sensing, governor,
-                overtaking, turn_step, width, height, velocity, heading, cell,
+                overtaking, turn_step, width, height, velocity, heading, cell, grid_cx, grid_cy,
+                grid_key, grid_order, grid_keys, grid_others, grid_held,
             )  # fmt: skip
         else:
-            steer_all(
+            _steer_pairs_c(
                 pos, heading, steer_at, moving, top_speed, present, radius, sensing, governor,
-                overtaking, turn_step, width, height, velocity, heading,
+                overtaking, turn_step, width, height, velocity, heading, everyone,
             )  # fmt: skip
         # World.push_velocities, World.step, World.sync_positions
         if not in_order:
@@ -708,6 +843,32 @@ def _run_ticks(
 
 
 run_ticks = compiled(_run_ticks)
+
+
+def _replay_commands(
+    c_calls: np.ndarray, commands: np.ndarray, velocities_in: np.ndarray, dt: float
+) -> None:
+    """The compiled physics floor (`tavc_env.measurement.compiled_floor`): every tick, the
+    recorded commands `commands[t]` (n, 2) written into the batch buffer `velocities_in`, then
+    the compiled tick's own Chipmunk calls (batch velocity write, `cpSpaceStep`, batch position
+    read), and nothing else. Every robot must be on the floor in index order (`World`'s
+    `in_order`)."""
+    space = c_calls[C_SPACE]
+    each = c_calls[C_EACH_BODY]
+    n = commands.shape[1]
+    for t in range(commands.shape[0]):
+        for i in range(n):
+            velocities_in[i, 0] = commands[t, i, 0]
+            velocities_in[i, 1] = commands[t, i, 1]
+        count = set_count(c_calls[C_SET_FLOATS], 0)
+        each_body(each, space, c_calls[C_SET_VISIT], c_calls[C_SET_DATA])
+        set_count(c_calls[C_SET_FLOATS], count)
+        space_step(c_calls[C_STEP], space, dt)
+        set_count(c_calls[C_GET_FLOATS], 0)
+        each_body(each, space, c_calls[C_GET_VISIT], c_calls[C_GET_DATA])
+
+
+replay_commands = compiled(_replay_commands)
 
 
 def compiled_cache_ready() -> bool | None:

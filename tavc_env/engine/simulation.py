@@ -33,13 +33,24 @@ from tavc_env.engine.navigation import (
     Navigator,
     TickArgs,
     after_step,
+    grid_scratch,
     neighbour_cell_m,
     run_ticks,
-    stuck,
+    stuck_of,
 )
 from tavc_env.engine.tasks import Phase, TaskCycle
 from tavc_env.engine.world import World
 
+_BROKEN = int(Phase.BROKEN)  # a plain int: no enum lookup per comparison
+_GRID_FIELDS = (
+    "grid_cx",
+    "grid_cy",
+    "grid_key",
+    "grid_order",
+    "grid_keys",
+    "grid_others",
+    "grid_held",
+)
 JAM_MOTION_M = 1.0  # ... while no moving robot got this far from where the window began
 
 
@@ -190,18 +201,17 @@ class Simulation:
     def _new_leg(self, robot: int) -> None:
         noise = self.config.speed_noise
         if noise > 0:
-            self.speed_factor[robot] = float(
-                np.clip(1.0 + noise * self.rng.standard_normal(), 0.5, 1.5)
-            )
+            # np.clip's value, without its cost on a scalar (the draw is never NaN)
+            self.speed_factor[robot] = min(max(1.0 + noise * self.rng.standard_normal(), 0.5), 1.5)
             self.top_speed[robot] = self.speeds[robot] * self.speed_factor[robot]
 
     def break_down(self, robot: int) -> None:
-        if self.tasks.phase[robot] == Phase.BROKEN:
+        if self.tasks.phase[robot] == _BROKEN:
             return
         self.tasks.break_down(robot)
         self.world.remove_robot(robot)
         self._pos = self.world.pos  # the world may now keep positions in another array
-        self._next_service = float(self.tasks.service_until.min())
+        self._next_service = min(self.tasks.service_until.tolist())
 
     def schedule_repair(self, robot: int) -> None:
         """Repair `robot` at the end of the next tick, so the repair is a decision epoch like any
@@ -209,10 +219,10 @@ class Simulation:
         add_repair(self._schedule, self.time_s, robot)
 
     def is_broken(self, robot: int) -> bool:
-        return bool(self.tasks.phase[robot] == Phase.BROKEN)
+        return bool(self.tasks.phase[robot] == _BROKEN)
 
     def repair(self, robot: int) -> None:
-        if self.tasks.phase[robot] != Phase.BROKEN:
+        if self.tasks.phase[robot] != _BROKEN:
             return
         self.world.restore_robot(robot, self.rng)
         self.world.sync_positions()
@@ -278,6 +288,8 @@ class Simulation:
             patience_s=STUCK_PATIENCE_S,
             arrived=self._hits,
             stalled=self._stalled,
+            everyone=np.arange(self.config.n_robots),
+            **dict(zip(_GRID_FIELDS, grid_scratch(self.config.n_robots))),
         )
         # the world itself too: a new World starts counting versions anew, and the compiled
         # tick must never call into the C space of one that is gone
@@ -354,11 +366,11 @@ class Simulation:
         if schedule_due:
             self._run_schedule(now, out)
         if n_stalled < 0:
-            active = tasks.moving & self.world.in_space
-            n_stalled = stuck(
+            n_stalled = stuck_of(
                 self._pos,
                 tasks.target,
-                active,
+                tasks.moving,
+                self.world.in_space,
                 self._anchor,
                 self._anchor_time,
                 now,
@@ -368,7 +380,7 @@ class Simulation:
         for k in range(n_stalled):
             self._escape(int(self._stalled[k]), now)
         if services_due or n_arrived or schedule_due:
-            self._next_service = float(tasks.service_until.min())
+            self._next_service = min(tasks.service_until.tolist())  # np.min's value, cheaper
             self._progress(now)
         elif now - self._progress_s >= self.jam_window_s:
             self._check_jam(now)
@@ -507,7 +519,7 @@ class Simulation:
         return _read_only(self.tasks.values)
 
     def broken(self) -> np.ndarray:
-        return self.tasks.phase == Phase.BROKEN
+        return self.tasks.phase == _BROKEN
 
     def snapshot(self) -> ArenaSnapshot:
         """The arena now, as copies (for drawing, recording or comparing)."""

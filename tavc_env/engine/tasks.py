@@ -61,8 +61,12 @@ class Mode(enum.IntEnum):
 
 
 NEVER = -1.0
-_FIRST_MOVING = int(Mode.TRAVEL)
-_LAST_MOVING = int(Mode.DOCKING)
+# The codes as plain ints for the rules below: comparing a numpy scalar with an IntEnum member
+# goes through the enum class's attribute lookup and a conversion, at every event
+_DECIDING, _TO_SOURCE, _TO_SINK, _BROKEN = (int(p) for p in Phase)
+_IDLE, _TRAVEL, _QUEUED, _DOCKING, _SERVICE = (int(m) for m in Mode)
+_FIRST_MOVING = _TRAVEL
+_LAST_MOVING = _DOCKING
 
 
 @dataclass
@@ -147,12 +151,12 @@ class TaskCycle:
         self.moving = np.zeros(n, dtype=np.bool_)  # robots driving toward a target (kept in sync)
 
     # -- queries -------------------------------------------------------------------------------
-    def _set_mode(self, i: int, mode: Mode) -> None:
+    def _set_mode(self, i: int, mode: int) -> None:
         self.mode[i] = mode
         self.moving[i] = _FIRST_MOVING <= mode <= _LAST_MOVING
 
     def needs_decision(self) -> np.ndarray:
-        return self.phase == Phase.DECIDING
+        return self.phase == _DECIDING
 
     def source_of(self, circuit: int) -> int:
         return 2 * circuit
@@ -163,8 +167,8 @@ class TaskCycle:
     # -- transitions ---------------------------------------------------------------------------
     def start(self, i: int, circuit: int) -> None:
         """Robot i begins, standing at circuit's sink, waiting for its first decision."""
-        self.phase[i] = Phase.DECIDING
-        self._set_mode(i, Mode.IDLE)
+        self.phase[i] = _DECIDING
+        self._set_mode(i, _IDLE)
         self.circuit[i] = circuit
         self.station[i] = -1
         self.bay[i] = -1
@@ -173,14 +177,14 @@ class TaskCycle:
 
     def choose(self, i: int, circuit: int, now: float) -> None:
         """Robot i (deciding) starts a task on `circuit`."""
-        self.phase[i] = Phase.TO_SOURCE
+        self.phase[i] = _TO_SOURCE
         self.circuit[i] = circuit
         self.decision_time[i] = now
         self._travel_to(i, self.source_of(circuit))
 
     def _travel_to(self, i: int, station: int) -> None:
         self.station[i] = station
-        self._set_mode(i, Mode.TRAVEL)
+        self._set_mode(i, _TRAVEL)
         self._aim(i, self.stations[station])
 
     def _aim(self, i: int, st: Station) -> None:
@@ -195,16 +199,16 @@ class TaskCycle:
         st = self.stations[station]
         for k, j in enumerate(st.line):
             self.target[j] = st.slots[k]
-        for traveller in np.flatnonzero((self.mode == Mode.TRAVEL) & (self.station == station)):
+        for traveller in np.flatnonzero((self.mode == _TRAVEL) & (self.station == station)):
             self._aim(int(traveller), st)
 
     def arrive(self, i: int, now: float) -> None:
         """Robot i reached the distance that fires its current trigger."""
-        if self.mode[i] == Mode.TRAVEL:
+        if self.mode[i] == _TRAVEL:
             self._join(i)
-        elif self.mode[i] == Mode.DOCKING:
+        elif self.mode[i] == _DOCKING:
             st = self.stations[self.station[i]]
-            self._set_mode(i, Mode.SERVICE)
+            self._set_mode(i, _SERVICE)
             self.trigger[i] = NEVER
             self.service_until[i] = now + st.service_s * self.service_scale[i]
 
@@ -215,14 +219,14 @@ class TaskCycle:
             self._dock(i, st, bay)
         else:
             st.line.append(i)
-            self._set_mode(i, Mode.QUEUED)
+            self._set_mode(i, _QUEUED)
             self.trigger[i] = NEVER
             self._line_changed(int(self.station[i]))
 
     def _dock(self, i: int, st: Station, bay: int) -> None:
         st.occupants[bay] = i
         self.bay[i] = bay
-        self._set_mode(i, Mode.DOCKING)
+        self._set_mode(i, _DOCKING)
         self.target[i] = st.docks[bay]
         self.trigger[i] = self.config.dock_tolerance_m
 
@@ -242,12 +246,12 @@ class TaskCycle:
         self.service_until[i] = math.inf
         self._release(i)
         c = int(self.circuit[i])
-        if self.phase[i] == Phase.TO_SOURCE:
-            self.phase[i] = Phase.TO_SINK
+        if self.phase[i] == _TO_SOURCE:
+            self.phase[i] = _TO_SINK
             self._travel_to(i, self.sink_of(c))
             return None
-        self.phase[i] = Phase.DECIDING
-        self._set_mode(i, Mode.IDLE)
+        self.phase[i] = _DECIDING
+        self._set_mode(i, _IDLE)
         self.station[i] = -1
         self.trigger[i] = NEVER
         self.completed[i] += 1
@@ -263,13 +267,13 @@ class TaskCycle:
             elif i in st.line:
                 st.line.remove(i)
                 self._line_changed(int(s))
-        self.phase[i] = Phase.BROKEN
-        self._set_mode(i, Mode.IDLE)
+        self.phase[i] = _BROKEN
+        self._set_mode(i, _IDLE)
         self.station[i] = -1
         self.trigger[i] = NEVER
         self.service_until[i] = math.inf
 
     def repair(self, i: int) -> None:
         """Robot i is back: it must decide where to go next (its last circuit stays its state)."""
-        self.phase[i] = Phase.DECIDING
-        self._set_mode(i, Mode.IDLE)
+        self.phase[i] = _DECIDING
+        self._set_mode(i, _IDLE)

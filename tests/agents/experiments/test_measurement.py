@@ -16,7 +16,9 @@ from tavc_env.measurement import (
     Mode,
     ModeTicks,
     SpacingMonitor,
+    compiled_floor,
     physics_floor,
+    physics_replay,
     run_fixed,
     two_circuit_allocation,
 )
@@ -147,3 +149,15 @@ def test_speed_measurements_run_as_many_ticks() -> None:
     assert env["decisions"] >= 6 and env["wall_s"] > 0
     floor = physics_floor(config, 0, 500, each_tick=True)
     assert floor["ticks"] == 500 and floor["sim_s"] == pytest.approx(50.0)
+
+
+@pytest.mark.parametrize("robots", [6, 24])
+def test_the_physics_yardsticks_replay_the_env_exactly(robots: int) -> None:
+    """The compiled floor and the Python replay end bit for bit where the env's run ended."""
+    from arena_runs import team_config
+
+    config = team_config(robots)
+    recorded = random_choice_run(config, 3, 120.0, record=True)
+    for replay in (compiled_floor, physics_replay):
+        found = replay(config, recorded)
+        assert found["exact"] and found["ticks"] == recorded["ticks"] == 1200

@@ -19,9 +19,11 @@ from tavc_env.engine.navigation import (
     STUCK_PATIENCE_S,
     after_step,
     arrivals,
+    grid_scratch,
     neighbour_cell_m,
     steer_all,
     steer_all_grid,
+    steer_grid_into,
     stuck,
 )
 from tavc_env.engine.simulation import Simulation
@@ -206,3 +208,34 @@ def test_compiled_tick_is_the_physics_of_its_commands(preset: str, lanes: int | 
         world.space.step(config.dt)
     replayed = np.array([tuple(b.position) for b in world.bodies])
     assert np.array_equal(replayed, recorded.positions())
+
+
+def test_the_grid_kept_from_tick_to_tick_gives_exactly_the_all_pairs_commands() -> None:
+    """The compiled tick keeps the grid's sorted order from one tick to the next
+    (`steer_grid_into`): robots moving between cells, leaving and re-entering the floor, and
+    scratch left by another team leave the commands those of `steer_all`."""
+    rng = np.random.default_rng(8)
+    radius, sensing, turn, w, h = 0.22, 1.0, 0.175, 30.0, 12.0
+    cell = neighbour_cell_m(radius, sensing)
+    n = 40
+    scratch = grid_scratch(n)
+    pos = rng.uniform(0.0, 1.0, size=(n, 2)) * np.array([w, h])
+    present = np.ones(n, dtype=bool)
+    for tick in range(300):
+        pos += rng.normal(scale=0.3 if tick % 50 else 3.0, size=(n, 2))  # now and then a jump
+        if tick % 7 == 0:
+            present = rng.random(n) < 0.85
+        if tick == 150:
+            scratch[3][:] = rng.permutation(n)  # another team's order, as many robots held
+            scratch[6][0] = int(present.sum())
+        heading = rng.uniform(-np.pi, np.pi, n)
+        target = pos + rng.normal(scale=2.0, size=(n, 2))
+        moving = rng.random(n) < 0.8
+        speed = rng.uniform(0.2, 0.3, n)
+        a_v, a_h = np.zeros((n, 2)), np.zeros(n)
+        b_v, b_h = np.zeros((n, 2)), np.zeros(n)
+        common = (pos, heading, target, moving, speed, present, radius, sensing, 0.0, False)
+        common += (turn, w, h)
+        steer_all(*common, a_v, a_h)
+        steer_grid_into(*common, b_v, b_h, cell, *scratch)
+        assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), tick
