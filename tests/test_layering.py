@@ -260,3 +260,30 @@ def test_the_layering_test_sees_function_level_imports(tmp_path: Path) -> None:
     )
     found = imported_modules(path, "probe")
     assert {"tavc_agents.experiments", "tavc_agents.experiments.study", "tavc_env.env"} <= found
+
+
+def longest_chain(edges: dict[str, set[str]]) -> list[str]:
+    """The longest chain of imports (a module, one it imports, one that imports, ...)."""
+    memo: dict[str, list[str]] = {}
+
+    def chain(name: str) -> list[str]:
+        if name not in memo:
+            memo[name] = [name, *max((chain(t) for t in edges.get(name, ())), key=len, default=[])]
+        return memo[name]
+
+    return max((chain(n) for n in edges), key=len)
+
+
+def test_the_wheels_longest_import_chain_is_at_most_15_modules() -> None:
+    """Issue 36: a house of few floors (VMAS 16, BenchMARL 13). A package's `__init__` importing
+    its own submodules is the usual re-export and not counted, as in the cycle check."""
+    wheel = {
+        name: {
+            t for t in targets if not t.startswith("benchmarks") and not t.startswith(name + ".")
+        }
+        for name, targets in EDGES.items()
+        if not name.startswith("benchmarks")
+    }
+    chain = longest_chain(wheel)
+    assert len(chain) <= 15, " -> ".join(chain)
+    assert longest_chain({"a": {"b"}, "b": {"c"}, "c": set()}) == ["a", "b", "c"]
