@@ -431,11 +431,19 @@ def _top_parser() -> argparse.ArgumentParser:
 
 
 EXTRAS = {
-    "scipy": ("scipy", "bench"),
     "matplotlib": ("matplotlib", "plot"),
     "pygame": ("pygame", "render"),
     "PIL": ("Pillow", "render"),
     "ray": ("ray", "ray"),
+    "torch": ("torch", "marl"),
+    "torchrl": ("torchrl", "marl"),
+    "tensordict": ("tensordict", "marl"),
+    "stable_baselines3": ("stable-baselines3", "marl"),
+    "sb3_contrib": ("sb3-contrib", "marl"),
+    "supersuit": ("supersuit", "marl"),
+    "tianshou": ("tianshou", "marl"),
+    "benchmarl": ("benchmarl", "benchmarl"),
+    "yaml": ("pyyaml", "benchmarl"),
 }
 """Optional dependencies by top-level module: the distribution, and the extra of `tavc-env` that
 installs it."""

@@ -241,7 +241,8 @@ def test_version_does_not_import_the_env() -> None:
 @pytest.mark.parametrize(
     ("module", "distribution", "extra"),
     [
-        ("scipy", "scipy", "bench"),
+        ("torch", "torch", "marl"),
+        ("benchmarl", "benchmarl", "benchmarl"),
         ("matplotlib.pyplot", "matplotlib", "plot"),
         ("PIL", "Pillow", "render"),
         ("ray", "ray", "ray"),
