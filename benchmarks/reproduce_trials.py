@@ -33,9 +33,9 @@ import tyro
 
 from tavc_agents.experiments.files import RECORD_MAX_BYTES, read_bytes
 from tavc_agents.experiments.packs import read_saved, saved_paths
-from tavc_agents.experiments.runner import Event, TrialResult
+from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import Outcome, parse_settings
-from tavc_agents.experiments.sweep import TrialSpec, run_spec
+from tavc_agents.experiments.sweep import TrialSpec, run_spec, spec_from_record
 
 IGNORED = ("wall_s", "spec")  # wall-clock time; the spec itself is what is re-run
 
@@ -96,9 +96,7 @@ def spec_of(stored: TrialResult, path: str) -> TrialSpec:
         raise ValueError(
             f"{path} has no stored spec; allowed: trials saved by tavc_agents.experiments"
         )
-    spec = {k: v for k, v in stored.spec.items() if k != "arena"}  # a digest, not an argument
-    spec["events"] = tuple(Event(**e) for e in spec.get("events", ()))
-    return TrialSpec(**spec)
+    return spec_from_record(stored.spec)
 
 
 def check(path: str) -> tuple[str, bool, int]:

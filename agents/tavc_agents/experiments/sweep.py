@@ -149,6 +149,17 @@ def spec_record(spec: TrialSpec) -> dict[str, Any]:
     return data
 
 
+DERIVED_KEYS = ("arena", "reset_seed")
+"""What `spec_record` adds to a spec's fields: facts derived from them, not arguments."""
+
+
+def spec_from_record(record: Mapping[str, Any]) -> TrialSpec:
+    """The `TrialSpec` a saved spec record (`spec_record`) was made from."""
+    fields = {k: v for k, v in record.items() if k not in DERIVED_KEYS}
+    fields["events"] = tuple(Event(**e) for e in fields.get("events", ()))
+    return TrialSpec(**fields)
+
+
 def arena_digest(env_kwargs: Mapping[str, Any]) -> str:
     """A short digest of the arena configuration that `env_kwargs` resolve to (the env's own
     options, such as time limits, are not part of the arena)."""
@@ -1007,9 +1018,7 @@ def rerun_failed(path: str | Path) -> TrialResult:
     """Run again the trial recorded in a `<key>.failed.json` that a sweep wrote, in this process
     (for debugging one failure), and save it beside, as `<key>.json`, if it now succeeds."""
     data = read_failed(path)
-    record = {k: v for k, v in data["record"].items() if k != "arena"}
-    record["events"] = tuple(Event(**e) for e in record.get("events", ()))
-    spec = TrialSpec(**record)
+    spec = spec_from_record(data["record"])
     result = run_spec(spec)
     _save_trial(result, data["record"], Path(path).with_name(f"{spec.key}.json"))
     _forget_failure(Path(path).parent, spec.key)  # the failure is stale now
