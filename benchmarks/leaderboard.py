@@ -43,7 +43,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from tavc_agents.analysis.plots import subplots
-from tavc_agents.analysis.reports import Report, markdown_table
+from tavc_agents.analysis.reports import Report, markdown_table, metadata_markdown
 from tavc_agents.evaluation import (
     allocators,
     episode_key,
@@ -72,6 +72,7 @@ from tavc_env.scenarios import SCENARIOS
 FIGURE = "leaderboard.png"
 PANELS_PER_ROW = 4  # eight panels in two rows stay readable at a page's width
 Row = dict[str, Any]
+SUBMITTED = " (submitted)"  # the mark of a row evaluated elsewhere
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -167,7 +168,7 @@ def submitted_rows(s: Settings, refs: Mapping[str, Mapping[str, float]]) -> list
             rows.append(
                 {
                     "scenario": name,
-                    "allocator": f"{row['name']} (submitted)",
+                    "allocator": f"{row['name']}{SUBMITTED}",
                     "seed": seed,
                     "value_per_h": value,
                     "score": (value - ref["random"]) / (ref["optimum"] - ref["random"]),
@@ -226,17 +227,25 @@ def report(s: Settings, rows: list[Row]) -> Report:
     header = ["allocator", *(SCENARIOS[n].id for n in s.scenarios), "suite (IQM, stratified)"]
     table = [[a, *(cell(cells[(a, n)]) for n in (*s.scenarios, "suite"))] for a in order]
     seeds = sorted({len(s.seeds_of(SCENARIOS[n])) for n in s.scenarios})
-    wall = sum(r["wall_s"] for r in rows)
+    run_here = [r for r in rows if not r["allocator"].endswith(SUBMITTED)]
+    wall = sum(r["wall_s"] for r in run_here)
     body = (
         "Normalised score (0 = random allocation, 1 = the model optimum; the scenarios' committed "
         "references) of every allocator: interquartile mean over "
         f"{'/'.join(str(k) for k in seeds)} evaluation seeds per scenario [95 % percentile "
         f"bootstrap, {s.resamples} resamples; the suite's column resamples seeds within each "
         "scenario]. Allocators are sorted by the suite's IQM. The TAVC learners learn online "
-        f"within each episode. {len(rows)} episodes, {wall / 60:.1f} min of episode wall time "
+        f"within each episode. {len(run_here)} episodes, {wall / 60:.1f} min of episode wall time "
         "in all (one process); a row marked submitted was evaluated elsewhere by "
         "`tavc evaluate` on the same episodes.\n\n" + markdown_table(header, table)
     )
+    for path in s.rows:  # where each submitted row was computed, from the row itself
+        row = read_row(path)
+        body += (
+            f"\n\nSubmitted row `{row['name']}` (`{Path(path).name}`), "
+            f"{row['metadata'].get('evaluation_cpu_s', '?')} CPU s of evaluation:\n\n"
+            + metadata_markdown(row["metadata"])
+        )
     rep = Report(
         "leaderboard", "Leaderboard: every allocator on every scenario", body, rows, summary
     )
