@@ -32,10 +32,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from arena_analysis import group_rows
+from arena_runs import measured_rate
 from tavc_agents.allocators.baselines import RandomAllocator
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
-from tavc_agents.experiments.estimation import measured_rate
 from tavc_agents.experiments.runner import run_trial
 from tavc_agents.experiments.study import (
     Outcome,

@@ -49,10 +49,10 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy import stats
 
+from arena_runs import circuit_of, group_of, group_specs, measured_rate
 from tavc_agents.analysis.allocation import delivered_performance
 from tavc_agents.analysis.reports import Report, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
-from tavc_agents.experiments.estimation import circuit_of, group_of, group_specs, measured_rate
 from tavc_agents.experiments.files import write_text
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (

@@ -50,7 +50,7 @@ import arena_runs
 import tavc_env
 from arena_analysis import Family, reach, with_elasticity
 from arena_runs import learner_of, run_batch
-from tavc_agents.analysis.plots import Curve, PhysicsPoint, differentiation_figure
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.files import read_csv, read_report
@@ -543,6 +543,208 @@ def run(settings: Settings) -> Outcome:
     )
     written = [out / "twin_curve_trials.csv", *report.write(out, provenance)]
     return Outcome(out, written, body.split("## Method")[0])
+
+
+# -- the figure -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Curve:
+    """A model-twin curve: fast - slow with its 95 % interval at each e, for one condition."""
+
+    condition: str
+    e: Sequence[float]
+    mean: Sequence[float]
+    low: Sequence[float]
+    high: Sequence[float]
+
+
+@dataclass(frozen=True)
+class PhysicsPoint:
+    """One cell: a condition in an arena of elasticity `e` [e_low, e_high], its fast - slow
+    [low, high] over `trials` trials."""
+
+    condition: str
+    arena: str
+    e: float
+    e_low: float
+    e_high: float
+    mean: float
+    low: float
+    high: float
+    trials: int
+
+
+def _error(centre: Sequence[float], low: Sequence[float], high: Sequence[float]) -> np.ndarray:
+    """Error-bar lengths below and above (0 where an end is not finite)."""
+    c, lo, hi = (np.asarray(x, dtype=float) for x in (centre, low, high))
+    return np.nan_to_num(np.vstack([c - lo, hi - c]), nan=0.0).clip(min=0.0)
+
+
+def differentiation_figure(
+    curves: Sequence[Curve],
+    physics: Sequence[PhysicsPoint],
+    predicted: Sequence[PhysicsPoint],
+    result: Sequence[PhysicsPoint],
+    path: str | Path,
+    twin_trials: int,
+) -> None:
+    """Fast - slow against crowding elasticity e: the twin's curves on synthetic tables (line and
+    95 % band), physics cells of every arena (circles, 95 % intervals; side by side within an
+    arena), and the twin's prediction (open diamonds) and physics result (stars) for the arena
+    where robots can pass. One colour per condition, in the order of `curves`; the e = 1 and
+    zero lines. A note says what is missing when `predicted` or `result` is empty."""
+    import matplotlib
+    from matplotlib.lines import Line2D
+
+    conditions = [c.condition for c in curves]
+    conditions += sorted({p.condition for p in (*physics, *predicted, *result)} - {*conditions})
+    palette = matplotlib.colormaps["tab10"]
+    colour = {c: palette(k) for k, c in enumerate(conditions)}
+    offset = {c: (k - (len(conditions) - 1) / 2) * 0.018 for k, c in enumerate(conditions)}
+    fig, ax = subplots(figsize=(10.5, 6.2))
+    for curve in curves:
+        ax.fill_between(curve.e, curve.low, curve.high, color=colour[curve.condition], alpha=0.18)
+        ax.plot(curve.e, curve.mean, "-", color=colour[curve.condition], lw=1.8)
+    # within an arena the conditions stand side by side; the passing arena's prediction just
+    # left of its result, so that the two do not hide each other
+    for points, shift, marker, size, face in (
+        (physics, 0.0, "o", 5, None),
+        (predicted, -0.011, "D", 6, "white"),
+        (result, 0.011, "*", 12, None),
+    ):
+        for p in points:
+            ax.errorbar(
+                p.e + 2 * offset[p.condition] * bool(shift) + offset[p.condition] + shift,
+                p.mean,
+                yerr=_error([p.mean], [p.low], [p.high]),
+                fmt=marker,
+                ms=size,
+                color=colour[p.condition],
+                mfc=face or colour[p.condition],
+                capsize=2.5,
+                lw=1.1,
+                zorder=3,
+            )
+    ax.axhline(0.0, color="black", lw=0.9)
+    ax.axvline(1.0, color="grey", lw=0.9, ls=":")
+    # room above the data for the arena labels (three staggered rows), anchored to the top
+    low, high = ax.get_ylim()
+    ax.set_ylim(low, high + 0.22 * (high - low))
+    arenas = sorted({(p.e, p.arena) for p in (*physics, *predicted)})
+    level = 0
+    for k, (e, arena) in enumerate(arenas):
+        # labels of arenas closer than a label's width go one row lower, in turn
+        level = (level + 1) % 3 if k > 0 and e - arenas[k - 1][0] < 0.35 else 0
+        ax.annotate(
+            f"{arena}\ne = {e:.2f}",
+            (e, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(0, -3 - 21 * level),
+            textcoords="offset points",
+            ha="center",
+            va="top",
+            fontsize=7,
+            color="0.3",
+        )
+    ax.annotate(
+        "e = 1: crowding costs every robot the same fraction",
+        (1.0, 0.0),
+        xycoords=("data", "axes fraction"),
+        xytext=(-3, 4),
+        textcoords="offset points",
+        rotation=90,
+        ha="right",
+        va="bottom",
+        fontsize=7,
+        color="0.35",
+    )
+    for sign, text in (
+        (1, "\u2191 paper's direction: fast robots on the high-value circuit"),
+        (-1, "\u2193 reversed: slow robots on the high-value circuit"),
+    ):
+        ax.annotate(
+            text,
+            (0.995, 0.0),
+            xycoords=ax.get_yaxis_transform(),  # x in axes fraction, y in data
+            xytext=(0, 4 * sign),
+            textcoords="offset points",
+            ha="right",
+            va="bottom" if sign > 0 else "top",
+            fontsize=8,
+            color="0.35",
+        )
+    handles = [Line2D([], [], color=colour[c], lw=6, alpha=0.5, label=c) for c in conditions]
+    handles += [
+        Line2D(
+            [],
+            [],
+            color="0.3",
+            lw=1.8,
+            label=f"model twin, synthetic tables ({twin_trials} trials per point, 95 % band)",
+        ),
+        Line2D(
+            [],
+            [],
+            color="0.3",
+            marker="o",
+            ls="",
+            label="physics cell of an arena (regime map, 95 % CI)",
+        ),
+    ]
+    pending = []
+    if predicted:
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color="0.3",
+                marker="D",
+                mfc="white",
+                ls="",
+                label=f"{predicted[0].arena}: twin prediction",
+            )
+        )
+    else:
+        pending.append("its twin prediction")
+    if result:
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color="0.3",
+                marker="*",
+                ms=11,
+                ls="",
+                label=f"{result[0].arena}: physics result",
+            )
+        )
+    else:
+        pending.append("its physics result")
+    # the empty lower middle: clear of the physics cells near e = 1 and of the lowest arenas
+    ax.legend(
+        handles=handles, fontsize=7.5, loc="lower left", bbox_to_anchor=(0.47, 0.06), framealpha=0.9
+    )
+    if pending:
+        ax.text(
+            0.99,
+            0.02,
+            "dahl2004_passing (robots can pass): " + " and ".join(pending) + " pending",
+            transform=ax.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=8,
+            style="italic",
+            color="0.3",
+        )
+    ax.set_xlabel(
+        "crowding elasticity e   (< 1: crowding costs slow robots the larger fraction; > 1: fast robots)"
+    )
+    ax.set_ylabel("fast - slow share of the measured period\non the high-value circuit")
+    ax.set_title(
+        "Emergent differentiation against crowding elasticity (softmax / epsilon TAVC, 15 h + 5 h)"
+    )
+    ax.grid(alpha=0.25)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, format="png")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -11,7 +11,7 @@ the team's value rate under an allocation (one group per circuit) is sum_i w_i c
 model-optimal allocation maximises it. `CompletionModel.optimum` finds it by exhaustive search over
 every split of the team (a few thousand allocations for three circuits and nine robots).
 
-`tavc_agents.experiments.estimation.estimate_model` measures c by simulation: each composition serves
+`estimate_model` of `benchmarks/arena_runs.py` measures c by simulation: each composition serves
 each circuit alone, as fixed allocations, and `model_from_runs` turns those runs into a model. The
 model therefore assumes that circuits do not slow each other down and that moving between circuits
 is free; the `tavc_model` study checks its predictions against the full arena.

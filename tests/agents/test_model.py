@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 import tavc_env
-from tavc_agents.experiments.estimation import estimate_model, group_specs, measured_rate
+from arena_runs import estimate_model, group_specs, measured_rate
 from tavc_agents.model import (
     Allocation,
     CompletionModel,

@@ -193,7 +193,7 @@ class GreedyAllocator(TeamAllocator):
 
     Each choice is a best response in a game whose potential is the team's value rate, so repeated
     choices settle in an allocation no single move improves (a local optimum of the model).
-    Knows: the model `c` (measured offline by `tavc_agents.experiments.estimation.estimate_model`), every robot's class,
+    Knows: the model `c` (measured offline by `estimate_model` of `benchmarks/arena_runs.py`), every robot's class,
     the current allocation and the circuits' current values. It ignores the cost of switching.
     """
 

@@ -114,7 +114,7 @@ def test_interference_figure_names_its_arena_and_starts_task_times_at_zero(
 def test_differentiation_figure_draws_every_source_and_says_what_is_pending(
     saved: list[Any], tmp_path: Path
 ) -> None:
-    from tavc_agents.analysis.plots import Curve, PhysicsPoint, differentiation_figure
+    from twin_curve import Curve, PhysicsPoint, differentiation_figure
 
     curve = Curve("softmax_T0.005", [0.8, 1.0, 1.5], [0.1, 0.05, -0.1], [0.0, 0.0, -0.2], [0.2] * 3)
     cell = PhysicsPoint("softmax_T0.005", "dahl2004", 1.85, 1.84, 1.86, -0.04, -0.07, -0.01, 400)
