@@ -531,13 +531,13 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         if truncated:  # the episode's statistics, in every agent's final info
             episode = self.episode_statistics()
             for info in infos.values():
-                info["episode"] = dict(episode)
+                info["episode_statistics"] = dict(episode)
         return infos
 
     def episode_statistics(self) -> dict[str, float]:
         """The episode so far: its delivered value (each delivery counting its circuit's value
         when delivered), simulated time, value per simulated hour (the suite's metric) and
-        deliveries. Every agent's info carries it at the episode's last step, as `"episode"`."""
+        deliveries. Every agent's info carries it at the episode's last step, as `"episode_statistics"` (not `"episode"`, which Gymnasium's RecordEpisodeStatistics writes)."""
         hours = self.sim.time_s / 3600.0
         return {
             "value": self.episode_value,

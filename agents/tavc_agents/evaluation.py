@@ -520,5 +520,5 @@ def _run_pettingzoo(
                 chosen[robot] = int(action)
             observations, _, _, _, infos = env.step(chosen)
             final = infos
-        values.append(float(next(iter(final.values()))["episode"]["value_per_hour"]))
+        values.append(float(next(iter(final.values()))["episode_statistics"]["value_per_hour"]))
     return values

@@ -344,11 +344,11 @@ def test_no_compiling_message_once_the_cache_holds_the_controller(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from tavc_agents import cli
-    from tavc_env.engine import navigation
+    from tavc_env import measurement
 
-    monkeypatch.setattr(navigation, "compiled_cache_ready", lambda: True)
+    monkeypatch.setattr(measurement, "compiled_cache_ready", lambda: True)
     cli.say_if_compiling()
     assert capsys.readouterr().err == ""
-    monkeypatch.setattr(navigation, "compiled_cache_ready", lambda: False)
+    monkeypatch.setattr(measurement, "compiled_cache_ready", lambda: False)
     cli.say_if_compiling()
     assert "compiling the robots' controller" in capsys.readouterr().err

@@ -44,10 +44,10 @@ def test_the_last_infos_carry_the_episodes_statistics_and_score() -> None:
     env = ScenarioEnv("priority_shifts", max_sim_time_s=SHORT * 3600)
     observations, infos = env.reset(seed=scenario.eval_seeds[0])
     while env.agents:
-        assert all("episode" not in i for i in infos.values())
+        assert all("episode_statistics" not in i for i in infos.values())
         observations, _, _, _, infos = env.step(stay(observations, infos))
-    episode = infos["robot_0"]["episode"]
-    assert all(i["episode"] == episode for i in infos.values())
+    episode = infos["robot_0"]["episode_statistics"]
+    assert all(i["episode_statistics"] == episode for i in infos.values())
     result = run_trial(
         lambda agent: StayAllocator(),
         seed=scenario.eval_seeds[0],

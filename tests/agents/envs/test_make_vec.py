@@ -32,7 +32,8 @@ def rollout(envs: gymnasium.vector.VectorEnv, seed: int, steps: int) -> list[np.
     for _ in range(steps):
         obs, rewards, terminated, truncated, infos = envs.step(rng.integers(0, 2, envs.num_envs))
         out += [obs, rewards, terminated, truncated]
-        out += [np.asarray(infos[k]) for k in sorted(infos) if k != "episode"]
+        # (nested dicts: Gymnasium's "episode" and the env's "episode_statistics")
+        out += [np.asarray(infos[k]) for k in sorted(infos) if not isinstance(infos[k], dict)]
     return out
 
 

@@ -12,12 +12,11 @@ import pytest
 
 import regime_map
 import tavc_env
-from tavc_agents.experiments.runner import Event
 from tavc_agents.experiments.sweep import (
     FIELDS_OF_FIRST_DIGESTS,
-    TrialSpec,
     arena_digest,
     digest_text,
+    spec_from_record,
     spec_record,
 )
 
@@ -45,9 +44,7 @@ def test_a_committed_trial_keeps_its_spec_record_and_arena_digest(path: Path) ->
     stored = stored_spec(path)
     if not stored:
         pytest.skip("a compact record or a trial run outside a sweep: no spec to check")
-    spec = {k: v for k, v in stored.items() if k != "arena"}
-    spec["events"] = tuple(Event(**e) for e in spec.get("events", ()))
-    record = spec_record(TrialSpec(**spec))
+    record = spec_record(spec_from_record(stored))
     if "arena" not in stored:  # saved before records carried digests
         del record["arena"]
     assert record == stored
