@@ -375,10 +375,10 @@ def check_figure_only(
 
     out = Path(tmp) / "run"
     shutil.copytree(committed, out, ignore=shutil.ignore_patterns(figure))
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     outcome = run(settings(out=out, figure_only=True))
     assert outcome.written == [out / figure]
-    after = {p.name: p.read_bytes() for p in out.iterdir()}
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     assert set(after) == {*before, figure}
     assert all(after[name] == data for name, data in before.items())
     empty = Path(tmp) / "empty"

@@ -364,9 +364,12 @@ def _steer_all_grid(
     index) and each row of three cells is found by binary search, so memory and time do not grow
     with the arena's area (a dense table of every cell died with MemoryError in a 1e5 m arena).
     (`steer_grid_into` with scratch arrays of its own; the compiled tick keeps them.)"""
+    n = pos.shape[0]
     _steer_grid_into_c(
         pos, heading, target, moving, top_speed, present, radius, sensing, governor, overtaking,
-        turn_step, width, height, out_velocity, out_heading, cell, *grid_scratch(pos.shape[0]),
+        turn_step, width, height, out_velocity, out_heading, cell, np.zeros(n, np.int64),
+        np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64),
+        np.zeros(n, np.int64), np.zeros(n, np.int64), np.full(1, -1, np.int64),
     )  # fmt: skip
 
 
