@@ -126,12 +126,15 @@ def report(s: Settings, jobs: Sequence[TrialSpec], results: Mapping[str, TrialRe
                 "score": SCENARIOS[name].score(value),
             }
         )
-    table, summary = [], {}
+    table = []
+    combos: dict[str, Any] = {}
     for combo in combinations():
         mine = [r for r in rows if r["combo"] == label(combo)]
-        per = {n: float(np.mean([r["score"] for r in mine if r["scenario"] == n])) for n in s.scenarios}
+        per = {
+            n: float(np.mean([r["score"] for r in mine if r["scenario"] == n])) for n in s.scenarios
+        }
         mean = float(np.mean([r["score"] for r in mine]))
-        summary[label(combo)] = {"settings": combo, "mean": mean, "per_scenario": per}
+        combos[label(combo)] = {"settings": combo, "mean": mean, "per_scenario": per}
         table.append((mean, combo, per))
     table.sort(key=lambda t: -t[0])
     best = table[0][1]
@@ -152,8 +155,14 @@ def report(s: Settings, jobs: Sequence[TrialSpec], results: Mapping[str, TrialRe
         + ", ".join(f"`{k}={v:g}`" for k, v in best.items())
         + f" (mean {table[0][0]:.3f}; the runner-up {table[1][0]:.3f})."
     )
-    summary = {"chosen": best, "combinations": summary}
-    return Report("own_reward_search", "Own-reward learner: settings search on training seeds", body, rows, summary)
+    summary: dict[str, Any] = {"chosen": best, "combinations": combos}
+    return Report(
+        "own_reward_search",
+        "Own-reward learner: settings search on training seeds",
+        body,
+        rows,
+        summary,
+    )
 
 
 def run(settings: Settings) -> Outcome:

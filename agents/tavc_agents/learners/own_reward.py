@@ -52,7 +52,10 @@ class OwnRewardParams:
 
     def __post_init__(self) -> None:
         checks = {
-            "epsilon": (_number(self.epsilon) and 0 <= self.epsilon <= 1, "a probability in [0, 1]"),
+            "epsilon": (
+                _number(self.epsilon) and 0 <= self.epsilon <= 1,
+                "a probability in [0, 1]",
+            ),
             "recency": (_number(self.recency) and 0 < self.recency <= 1, "a step size in (0, 1]"),
             "hysteresis": (
                 _number(self.hysteresis) and 0 <= self.hysteresis < 10,
