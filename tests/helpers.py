@@ -374,13 +374,11 @@ def check_figure_only(
     from pathlib import Path
 
     out = Path(tmp) / "run"
-    # the local trial cache (ignored by git) is not the report's; sub-folders (a leaderboard's
-    # submitted rows/) are compared by their files' presence only
-    shutil.copytree(committed, out, ignore=shutil.ignore_patterns(figure, "trials"))
-    before = {p.name: p.read_bytes() if p.is_file() else b"" for p in out.iterdir()}
+    shutil.copytree(committed, out, ignore=shutil.ignore_patterns(figure))
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     outcome = run(settings(out=out, figure_only=True))
     assert outcome.written == [out / figure]
-    after = {p.name: p.read_bytes() if p.is_file() else b"" for p in out.iterdir()}
+    after = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
     assert set(after) == {*before, figure}
     assert all(after[name] == data for name, data in before.items())
     empty = Path(tmp) / "empty"
