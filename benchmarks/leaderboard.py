@@ -1,5 +1,6 @@
-"""The leaderboard: every allocator of the package (random, stay, epsilon and softmax TAVC, response
-threshold, auction, greedy, static) on every scenario of the suite (`tavc_env.scenarios`) and its
+"""The leaderboard: every allocator of the package (random, stay, epsilon and softmax TAVC, the
+own-reward learner with the default and with the rich observation, response threshold, auction,
+greedy, static) on every scenario of the suite (`tavc_env.scenarios`) and its
 evaluation seeds; scores normalised between the scenarios' committed references (0 = random, 1 =
 the model optimum), interquartile means with bootstrap intervals per scenario and over the suite
 (stratified).
@@ -8,7 +9,7 @@ Writes `leaderboard.{md,csv,json}`, `leaderboard.png` and every episode under tr
 run folder under runs/ (git ignores it), `--out`, or with `--update-reference`
 benchmarks/results/leaderboard/; `--resume RUN_DIR` continues an interrupted run.
 
-    python benchmarks/leaderboard.py            # 8 allocators x 7 scenarios x 20 seeds of 8 h
+    python benchmarks/leaderboard.py            # 10 allocators x 7 scenarios x 20 seeds of 8 h
     python benchmarks/leaderboard.py --quick    # smoke run
     python benchmarks/leaderboard.py --update-reference --figure-only   # redraw the PNG, run nothing
 
@@ -131,9 +132,16 @@ def specs(s: Settings) -> list[TrialSpec]:
         scenario = SCENARIOS[name]
         values = [c.value for c in scenario.config().circuits]
         model = load_model(scenario.model).with_values(values)
-        for allocator in allocators(model, plugins=s.plugins):
+        for allocator in allocators(model, plugins=s.plugins, rich=True):
             for seed in s.seeds_of(scenario):
-                spec = episode_spec(name, seed, allocator.allocator, allocator.kwargs, episode_h)
+                spec = episode_spec(
+                    name,
+                    seed,
+                    allocator.allocator,
+                    allocator.kwargs,
+                    episode_h,
+                    allocator.observation_mode,
+                )
                 tags: dict[str, TagValue] = {
                     "scenario": name,
                     "allocator": allocator.name,

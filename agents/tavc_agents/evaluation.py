@@ -87,19 +87,28 @@ class Allocator:
     label: str
     kwargs: Mapping[str, Any]
     registry: str = ""  # the allocator's registry name, if not `name`
+    observation_mode: str | None = None  # the env's observation, if not its default
 
     @property
     def allocator(self) -> str:
         return self.registry or self.name
 
 
+OWN_REWARD: Mapping[str, Any] = {"epsilon": 0.03, "recency": 0.2, "hysteresis": 0.0}
+"""The own-reward learner's settings, chosen on training seeds (benchmarks/own_reward_search.py,
+benchmarks/results/own_reward_search/)."""
+
+
 def allocators(
     model: CompletionModel,
     networks: Mapping[str, Path] | None = None,
     plugins: Sequence[str] = (),
+    *,
+    rich: bool = False,
 ) -> list[Allocator]:
     """The allocators compared, in report order (the model-based ones get `model`; `networks`:
-    trained networks by learning run; `plugins`: more allocators by registry name)."""
+    trained networks by learning run; `plugins`: more allocators by registry name; `rich`: also
+    the own-reward learner on the `rich` observation, reading the circuits' values from it)."""
     m = model.to_dict()
     extra = [Allocator(name, name, {"model": m} if takes_model(name) else {}) for name in plugins]
     trained = [
@@ -111,6 +120,20 @@ def allocators(
         Allocator("stay", "stay (the start's circuits)", {}),
         Allocator("epsilon_tavc", "epsilon TAVC", {"epsilon": 0.1, "init": "scaled"}),
         Allocator("softmax_tavc", "softmax TAVC", {"temperature": 0.005, "init": "scaled"}),
+        Allocator("own_reward", "own-reward learner", dict(OWN_REWARD)),
+        *(
+            [
+                Allocator(
+                    "own_reward_rich",
+                    "own-reward learner (rich observation)",
+                    {**OWN_REWARD, "values": "observed"},
+                    "own_reward",
+                    "rich",
+                )
+            ]
+            if rich
+            else []
+        ),
         Allocator("response_threshold", "response threshold", {}),
         Allocator("auction", "auction", {"model": m}),
         Allocator("greedy", "greedy (model)", {"model": m}),
@@ -409,10 +432,16 @@ def episode_key(scenario: str, allocator: str, seed: int) -> str:
 
 
 def episode_spec(
-    scenario: str, seed: int, allocator: str, kwargs: Mapping[str, Any], episode_h: float | None
+    scenario: str,
+    seed: int,
+    allocator: str,
+    kwargs: Mapping[str, Any],
+    episode_h: float | None,
+    observation_mode: str | None = None,
 ) -> TrialSpec:
     """Evaluation episode `seed` of `scenario` for a named allocator, as a sweep's trial: the
-    model-based allocators get the scenario's TAVC model at its start values."""
+    model-based allocators get the scenario's TAVC model at its start values; `observation_mode`
+    (None: the env's default) is the env's observation."""
     s = SCENARIOS[scenario]
     kw = dict(kwargs)
     if takes_model(allocator) and "model" not in kw:
@@ -424,7 +453,8 @@ def episode_spec(
         allocator=allocator,
         allocator_kwargs=kw,
         seed=seed,
-        env_kwargs={"scenario": scenario},
+        env_kwargs={"scenario": scenario}
+        | ({} if observation_mode is None else {"observation_mode": observation_mode}),
         convergence_s=0.0,
         measured_s=episode_s,
         snapshot_every_s=episode_s,

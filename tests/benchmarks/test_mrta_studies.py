@@ -147,6 +147,7 @@ def test_allocators_against_the_model(allocators_run: dict[str, object]) -> None
         "stay",
         "epsilon_tavc",
         "softmax_tavc",
+        "own_reward",
         "response_threshold",
         "auction",
         "greedy",
@@ -160,7 +161,7 @@ def test_allocators_against_the_model(allocators_run: dict[str, object]) -> None
     assert float(summary["static"]["switches_per_robot_h"]) == 0.0
     assert float(summary["random"]["vs_random"]) == pytest.approx(1.0)
     trials = rows(out / "trials.csv")
-    assert len(trials) == 18
+    assert len(trials) == 20  # 10 allocators x 2 seeds
     assert [(r["allocator"], r["seed"]) for r in trials[:3]] == [
         ("random", "0"),
         ("random", "1"),

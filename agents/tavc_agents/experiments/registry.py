@@ -33,6 +33,7 @@ from tavc_agents.allocators.market import AuctionAllocator
 from tavc_agents.allocators.teams import GreedyAllocator, StaticAllocator
 from tavc_agents.allocators.threshold import ResponseThresholdAllocator
 from tavc_agents.learners.network import NetworkTeam
+from tavc_agents.learners.own_reward import own_reward
 from tavc_agents.learners.tavc import epsilon_tavc, softmax_tavc
 from tavc_agents.policy import Policy, Team
 
@@ -284,6 +285,7 @@ def _build(factory: Callable[..., Any], name: str, params: Mapping[str, Any]) ->
 _POLICIES: dict[str, Callable[..., Policy]] = {
     "softmax_tavc": softmax_tavc,
     "epsilon_tavc": epsilon_tavc,
+    "own_reward": own_reward,
     "random": RandomAllocator,
     "fixed": FixedAllocator,
     "stay": StayAllocator,

@@ -89,7 +89,7 @@ def assert_fixed_split(result: TrialResult, offset: int) -> None:
 # -- run-time registration --------------------------------------------------------------------------
 def test_built_in_allocators_by_kind() -> None:
     registry = AllocatorRegistry(BUILT_IN, group=None)
-    per_robot = {"softmax_tavc", "epsilon_tavc", "random", "fixed", "stay"}
+    per_robot = {"softmax_tavc", "epsilon_tavc", "own_reward", "random", "fixed", "stay"}
     teams = {"static", "greedy", "auction", "response_threshold", "network"}
     assert registry.names(team=False) == sorted(per_robot)
     assert registry.names(team=True) == sorted(teams)
