@@ -334,6 +334,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         episode_h=args.episode_h,
         params=params,
         readout=args.readout,
+        observation_mode=args.observation,
         workers=args.workers,
         name=args.name,
         progress=True,
@@ -551,6 +552,12 @@ def parser() -> argparse.ArgumentParser:
         choices=["sampled", "greedy"],
         default="sampled",
         help="a network: sampled, as a stochastic policy acts (default), or greedy",
+    )
+    ev.add_argument(
+        "--observation",
+        choices=["paper", "paper_id", "rich"],
+        default=None,
+        help="the env's observation (default: the env's; rich adds the circuits' values)",
     )
     ev.add_argument("--workers", type=int, default=1, help="processes (allocators, networks)")
     ev.add_argument("--name", default=None, help="the row's name (default: the agent's)")

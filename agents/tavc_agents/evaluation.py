@@ -24,11 +24,12 @@ from scipy import stats
 from tavc_agents.experiments.files import read_report
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.registry import REGISTRY
-from tavc_agents.experiments.runner import TrialResult, run_trial
-from tavc_agents.experiments.sweep import TrialSpec, run_sweep
+from tavc_agents.experiments.runner import TrialResult, env_arguments, run_trial
+from tavc_agents.experiments.sweep import SweepError, TrialSpec, run_sweep
 from tavc_agents.learners.network import READOUTS, declared_layers
 from tavc_agents.model import CompletionModel, load_model
 from tavc_agents.policy import Policy
+from tavc_env.observations import OBSERVATION_MODES
 from tavc_env.safe_files import atomic_path
 from tavc_env.scenarios import SCENARIOS, ScenarioEnv
 from tavc_env.validation import is_integer, is_number
@@ -283,6 +284,7 @@ def evaluate(
     episode_h: float | None = None,
     params: Mapping[str, Any] | None = None,
     readout: str = "sampled",
+    observation_mode: str | None = None,
     workers: int = 1,
     name: str | None = None,
     resamples: int = 10_000,
@@ -304,7 +306,8 @@ def evaluate(
 
     `seeds`: how many of each scenario's evaluation seeds (the first ones), or the seeds
     themselves (each an evaluation seed), default all. `episode_h`: shorter episodes than the
-    scenario's (their scores are not the leaderboard's). `workers`: processes for a named
+    scenario's (their scores are not the leaderboard's). `observation_mode`: the env's observation
+    (`rich` adds the circuits' values; None: the default). `workers`: processes for a named
     allocator or a network (a callable runs in this process).
     """
     names = scenario_list(scenarios)
@@ -317,7 +320,12 @@ def evaluate(
         raise EvaluationError(f"resamples = {resamples!r} is invalid; allowed: an integer >= 100")
     kind, label, run = _runner(agent, params, readout, names)
     started = time.process_time()
-    values = run(plan, episode_h, workers, progress)
+    if observation_mode is not None and observation_mode not in OBSERVATION_MODES:
+        raise EvaluationError(
+            f"observation_mode = {observation_mode!r} is invalid; allowed: None (the env's "
+            f"default) or one of {list(OBSERVATION_MODES)}"
+        )
+    values = run(plan, episode_h, workers, progress, observation_mode=observation_mode)
     episodes = tuple(
         Episode(s, seed, v, SCENARIOS[s].score(v)) for (s, seed), v in zip(plan, values)
     )
@@ -366,7 +374,7 @@ def _episodes(names: Sequence[str], seeds: int | Sequence[int] | None) -> list[t
     return plan
 
 
-Runner = Callable[[list[tuple[str, int]], "float | None", int, bool], list[float]]
+Runner = Callable[..., list[float]]
 
 
 def _runner(
@@ -469,10 +477,20 @@ def _run_named(
     episode_h: float | None,
     workers: int,
     progress: bool,
+    observation_mode: str | None = None,
 ) -> list[float]:
-    specs = [episode_spec(s, seed, allocator, kwargs, episode_h) for s, seed in plan]
+    specs = [
+        episode_spec(s, seed, allocator, kwargs, episode_h, observation_mode) for s, seed in plan
+    ]
     with tempfile.TemporaryDirectory(prefix="tavc-evaluate-") as tmp:
-        results = run_sweep(specs, tmp, workers=workers, progress_bar=progress)
+        try:
+            results = run_sweep(specs, tmp, workers=workers, progress_bar=progress)
+        except SweepError as error:  # one line: the first failed episode and how many failed
+            first = error.failures[0]
+            raise EvaluationError(
+                f"{allocator}, episode {first.key}: {first.error.strip().splitlines()[-1]} "
+                f"({len(error.failures)} of {len(specs)} episodes failed)"
+            ) from error
     return [value_per_hour(results[spec.key]) for spec in specs]
 
 
@@ -482,18 +500,19 @@ def _run_factory(
     episode_h: float | None,
     workers: int,
     progress: bool,
+    observation_mode: str | None = None,
 ) -> list[float]:
     values = []
     for scenario, seed in plan:
-        episode_s = _episode_s(scenario, episode_h)
+        spec = episode_spec(scenario, seed, "stay", {}, episode_h, observation_mode)
         try:
             result = run_trial(
                 factory,
                 seed=seed,
                 convergence_s=0.0,
-                measured_s=episode_s,
-                snapshot_every_s=episode_s,
-                arena={"scenario": scenario},
+                measured_s=spec.measured_s,
+                snapshot_every_s=spec.measured_s,
+                **env_arguments(spec.env_kwargs),
             )
         except Exception as error:
             raise EvaluationError(
@@ -510,10 +529,14 @@ def _run_pettingzoo(
     episode_h: float | None,
     workers: int,
     progress: bool,
+    observation_mode: str | None = None,
 ) -> list[float]:
     values = []
+    options: dict[str, Any] = (
+        {} if observation_mode is None else {"observation_mode": observation_mode}
+    )
     for scenario, seed in plan:
-        env = ScenarioEnv(scenario, max_sim_time_s=_episode_s(scenario, episode_h))
+        env = ScenarioEnv(scenario, max_sim_time_s=_episode_s(scenario, episode_h), **options)
         reset = getattr(policy, "reset", None)
         if callable(reset):
             reset(seed)

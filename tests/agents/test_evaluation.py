@@ -158,3 +158,16 @@ def test_stay_on_the_plain_env_gives_the_committed_leaderboards_episodes(scenari
     assert sorted(committed) == list(SCENARIOS[scenario].eval_seeds)
     mine = evaluate(stay, scenario)
     assert {e.seed: e.value_per_hour for e in mine.episodes} == committed
+
+
+def test_a_named_allocator_that_fails_is_one_line_and_the_observation_can_be_chosen() -> None:
+    observed = {"values": "observed"}  # the own-reward learner reading values from the observation
+    with pytest.raises(EvaluationError, match=r"^own_reward, episode dahl2004__own_reward__10000"):
+        evaluate("own_reward", "dahl2004", seeds=1, episode_h=0.05, params=observed)
+    rich = evaluate(
+        "own_reward", "priority_shifts", seeds=1, episode_h=0.1, params=observed,
+        observation_mode="rich",
+    )  # fmt: skip
+    assert len(rich.episodes) == 1
+    with pytest.raises(EvaluationError, match="observation_mode = 'x' is invalid"):
+        evaluate("stay", "dahl2004", seeds=1, observation_mode="x")
