@@ -33,6 +33,7 @@ from tavc_env.engine.simulation import Simulation
 from tavc_env.env import (
     ENV_NAME,
     PHASES,
+    RecordEpisodeStatistics,
     TavcArenaEnv,
     completed_task_s,
     env,
@@ -64,6 +65,7 @@ __all__ = [
     "Circuit",
     "EnvOptions",
     "InterferenceTables",
+    "RecordEpisodeStatistics",
     "Robot",
     "Scenario",
     "ScenarioEnv",

@@ -61,7 +61,7 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.env import AECEnv
-from pettingzoo.utils.wrappers import OrderEnforcingWrapper
+from pettingzoo.utils.wrappers import BaseParallelWrapper, OrderEnforcingWrapper
 from pettingzoo.utils.wrappers.order_enforcing import (
     AECOrderEnforcingIterable,
     AECOrderEnforcingIterator,
@@ -528,16 +528,14 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
             }
             if masks is not None:
                 infos[agent]["action_mask"] = masks[i]
-        if truncated:  # the episode's statistics, in every agent's final info
-            episode = self.episode_statistics()
-            for info in infos.values():
-                info["episode_statistics"] = dict(episode)
         return infos
 
     def episode_statistics(self) -> dict[str, float]:
         """The episode so far: its delivered value (each delivery counting its circuit's value
         when delivered), simulated time, value per simulated hour (the suite's metric) and
-        deliveries. Every agent's info carries it at the episode's last step, as `"episode_statistics"` (not `"episode"`, which Gymnasium's RecordEpisodeStatistics writes)."""
+        deliveries. `RecordEpisodeStatistics` puts it in every agent's info at the episode's last
+        step (the plain env's infos hold only numbers, which the learning libraries' adapters turn
+        into tensors)."""
         hours = self.sim.time_s / 3600.0
         return {
             "value": self.episode_value,
@@ -908,3 +906,22 @@ def _rebuild_simulation(
 
 
 copyreg.pickle(Simulation, _reduce_simulation)
+
+
+class RecordEpisodeStatistics(BaseParallelWrapper):
+    """A parallel env whose last step's infos carry the episode's statistics: every agent's info
+    gets `"episode_statistics"` (`episode_statistics()`: delivered value, value per simulated
+    hour, deliveries and, on a scenario, the normalised score), in the spirit of Gymnasium's
+    `RecordEpisodeStatistics` (whose `"episode"` key it leaves alone).
+
+        env = tavc_env.RecordEpisodeStatistics(tavc_env.scenarios.parallel_env("bad_start"))
+    """
+
+    def step(self, actions: dict[str, Any]) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
+        observations, rewards, terminations, truncations, infos = super().step(actions)
+        ended = all(terminations.values()) or all(truncations.values())
+        if ended and infos:
+            statistics = self.unwrapped.episode_statistics()
+            for info in infos.values():
+                info["episode_statistics"] = dict(statistics)
+        return observations, rewards, terminations, truncations, infos

@@ -541,7 +541,6 @@ def _run_pettingzoo(
         if callable(reset):
             reset(seed)
         observations, infos = env.reset(seed=seed)
-        final: Mapping[str, Any] = {}
         while env.agents:
             where = f"scenario {scenario!r}, episode {seed}, t = {env.sim_time_s:.1f} s"
             try:
@@ -572,6 +571,5 @@ def _run_pettingzoo(
                     )
                 chosen[robot] = int(action)
             observations, _, _, _, infos = env.step(chosen)
-            final = infos
-        values.append(float(next(iter(final.values()))["episode_statistics"]["value_per_hour"]))
+        values.append(float(env.episode_statistics()["value_per_hour"]))
     return values

@@ -20,6 +20,7 @@ from tavc_agents.evaluation import EvaluationError, evaluate, read_row
 from tavc_agents.experiments.runner import run_trial
 from tavc_agents.learners.network import Mlp
 from tavc_agents.learners.tavc import softmax_tavc
+from tavc_env import RecordEpisodeStatistics
 from tavc_env.scenarios import SCENARIOS, ScenarioEnv
 
 SHORT = 0.2  # hours: the protocol's episodes, cut short (scores are not the leaderboard's)
@@ -41,7 +42,7 @@ def test_a_named_allocator_and_a_pettingzoo_policy_see_the_same_episodes(scenari
 
 def test_the_last_infos_carry_the_episodes_statistics_and_score() -> None:
     scenario = SCENARIOS["priority_shifts"]  # values change mid-episode: paid when delivered
-    env = ScenarioEnv("priority_shifts", max_sim_time_s=SHORT * 3600)
+    env = RecordEpisodeStatistics(ScenarioEnv("priority_shifts", max_sim_time_s=SHORT * 3600))
     observations, infos = env.reset(seed=scenario.eval_seeds[0])
     while env.agents:
         assert all("episode_statistics" not in i for i in infos.values())
