@@ -63,7 +63,7 @@ import numpy as np
 
 from tavc_agents.analysis.plots import count_ticks, subplots
 from tavc_agents.analysis.reports import Report, markdown_table
-from tavc_agents.evaluation import iqm_ci, references, value_per_hour
+from tavc_agents.evaluation import iqm_ci, normalised, references, value_per_hour
 from tavc_agents.experiments.files import read_csv, read_report
 from tavc_agents.experiments.runner import run_trial
 from tavc_agents.experiments.study import (
@@ -511,11 +511,6 @@ def rows_of(
 def mean_value(result: Mapping[str, Any]) -> float:
     """A network's value per hour: its mean over the evaluation seeds."""
     return float(np.mean(result["eval_values_per_h"]))
-
-
-def normalised(value: float, ref: Mapping[str, float]) -> float:
-    """0 = random allocation, 1 = the model optimum (the scenarios' committed references)."""
-    return (value - ref["random"]) / (ref["optimum"] - ref["random"])
 
 
 def chosen_readout(choice_means: Mapping[str, float]) -> str:

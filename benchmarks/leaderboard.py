@@ -50,6 +50,7 @@ from tavc_agents.evaluation import (
     episode_key,
     episode_spec,
     iqm_ci,
+    normalised,
     read_row,
     references,
     value_per_hour,
@@ -179,7 +180,7 @@ def submitted_rows(s: Settings, refs: Mapping[str, Mapping[str, float]]) -> list
                     "allocator": f"{row['name']}{SUBMITTED}",
                     "seed": seed,
                     "value_per_h": value,
-                    "score": (value - ref["random"]) / (ref["optimum"] - ref["random"]),
+                    "score": normalised(value, ref),
                     "wall_s": 0.0,
                 }
             )
@@ -202,7 +203,7 @@ def rows_of(
                 "allocator": allocator,
                 "seed": spec.seed,
                 "value_per_h": value,
-                "score": (value - ref["random"]) / (ref["optimum"] - ref["random"]),
+                "score": normalised(value, ref),
                 "wall_s": results[spec.key].wall_s,
             }
         )

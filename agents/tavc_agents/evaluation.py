@@ -81,6 +81,11 @@ def references(path: Path) -> dict[str, dict[str, float]]:
     }
 
 
+def normalised(value: float, ref: Mapping[str, float]) -> float:
+    """0 = random allocation, 1 = the model optimum (a scenario's entry of `references`)."""
+    return (value - ref["random"]) / (ref["optimum"] - ref["random"])
+
+
 # -- the allocators the leaderboard compares ------------------------------------------------------
 @dataclass(frozen=True)
 class Allocator:
@@ -434,6 +439,13 @@ def _episode_s(scenario: str, episode_h: float | None) -> float:
     return SCENARIOS[scenario].episode_s if episode_h is None else float(episode_h) * 3600.0
 
 
+def episode_env(scenario: str, observation_mode: str | None) -> dict[str, Any]:
+    """The env arguments of an evaluation episode of `scenario`: the scenario, and the observation
+    if one is chosen (None: the env's default)."""
+    chosen = {} if observation_mode is None else {"observation_mode": observation_mode}
+    return {"scenario": scenario, **chosen}
+
+
 def episode_key(scenario: str, allocator: str, seed: int) -> str:
     """The trial key of evaluation episode `seed` of `scenario` for `allocator`."""
     return f"{scenario}__{allocator}__{seed}"
@@ -461,8 +473,7 @@ def episode_spec(
         allocator=allocator,
         allocator_kwargs=kw,
         seed=seed,
-        env_kwargs={"scenario": scenario}
-        | ({} if observation_mode is None else {"observation_mode": observation_mode}),
+        env_kwargs=episode_env(scenario, observation_mode),
         convergence_s=0.0,
         measured_s=episode_s,
         snapshot_every_s=episode_s,
@@ -504,15 +515,15 @@ def _run_factory(
 ) -> list[float]:
     values = []
     for scenario, seed in plan:
-        spec = episode_spec(scenario, seed, "stay", {}, episode_h, observation_mode)
+        episode_s = _episode_s(scenario, episode_h)
         try:
             result = run_trial(
                 factory,
                 seed=seed,
                 convergence_s=0.0,
-                measured_s=spec.measured_s,
-                snapshot_every_s=spec.measured_s,
-                **env_arguments(spec.env_kwargs),
+                measured_s=episode_s,
+                snapshot_every_s=episode_s,
+                **env_arguments(episode_env(scenario, observation_mode)),
             )
         except Exception as error:
             raise EvaluationError(
@@ -532,10 +543,9 @@ def _run_pettingzoo(
     observation_mode: str | None = None,
 ) -> list[float]:
     values = []
-    options: dict[str, Any] = (
-        {} if observation_mode is None else {"observation_mode": observation_mode}
-    )
     for scenario, seed in plan:
+        options = episode_env(scenario, observation_mode)
+        options.pop("scenario")
         env = ScenarioEnv(scenario, max_sim_time_s=_episode_s(scenario, episode_h), **options)
         reset = getattr(policy, "reset", None)
         if callable(reset):

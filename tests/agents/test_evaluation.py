@@ -172,3 +172,16 @@ def test_a_named_allocator_that_fails_is_one_line_and_the_observation_can_be_cho
     assert len(rich.episodes) == 1
     with pytest.raises(EvaluationError, match="observation_mode = 'x' is invalid"):
         evaluate("stay", "dahl2004", seeds=1, observation_mode="x")
+
+
+def test_the_package_references_are_the_committed_reports() -> None:
+    """The references the scenario envs and `evaluate` score with (package data) are those the
+    leaderboards read from the scenarios study's committed report: one measurement, two files,
+    written together by `benchmarks/scenarios.py --stage measure --update-reference`."""
+    from tavc_agents.evaluation import references
+
+    report = LEADERBOARD.parent / "scenarios" / "references.json"
+    for name, ref in references(report).items():
+        mine = SCENARIOS[name].references
+        assert mine is not None
+        assert (mine.random_per_h, mine.optimum_per_h) == (ref["random"], ref["optimum"])
