@@ -52,11 +52,14 @@ from tavc_env.config import ArenaConfig
 _cache_warned: list[str] = []
 
 
-def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
+def compiled(fn: Callable[..., Any], inline: bool = False) -> Callable[..., Any]:
     """numba's compiled `fn`, cached on disk; where no cache folder can be written (a
-    read-only install run by another user), compiled at every start, with one warning."""
+    read-only install run by another user), compiled at every start, with one warning.
+    `inline`: compiled into each compiled caller rather than called (a small function called
+    per robot pair, where the call itself costs more than its arithmetic)."""
+    how = "always" if inline else "never"
     try:
-        return _njit(cache=True, fastmath=False, nogil=True)(fn)
+        return _njit(cache=True, fastmath=False, nogil=True, inline=how)(fn)
     except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
         if "no locator" not in str(error):
             raise
@@ -73,7 +76,7 @@ def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
             RuntimeWarning,
             stacklevel=2,
         )
-    return _njit(cache=False, fastmath=False, nogil=True)(fn)
+    return _njit(cache=False, fastmath=False, nogil=True, inline=how)(fn)
 
 
 STEER_GAIN = 1.5  # sideways deflection per unit of obstacle weight
@@ -776,38 +779,26 @@ def _break_down(t: TaskArrays, i: int) -> None:
 break_down = compiled(_break_down)
 
 
-def _task_rules(
-    t: TaskArrays,
-    now: float,
-    services_due: bool,
-    pos: np.ndarray,
-    arrived: np.ndarray,
-    done: np.ndarray,
-    legs: np.ndarray,
-    draw_legs: bool,
-) -> tuple[int, int, int]:
-    """The task events at the end of a tick, in the order the rules fix: services ending (robot
-    by robot), then arrivals (all found first, then handled robot by robot). Writes the robots
-    that completed a task into `done` and, if `draw_legs`, those that start a leg to the sink
-    (their speed is drawn anew, in Python) into `legs`; returns (completed, legs, arrived)."""
+def _end_services(
+    t: TaskArrays, now: float, done: np.ndarray, legs: np.ndarray, draw_legs: bool
+) -> tuple[int, int]:
+    """The services due at `now` end, robot by robot. Writes the robots that completed a task
+    into `done` and, if `draw_legs`, those that start a leg to the sink (their speed is drawn
+    anew, in Python) into `legs`; returns how many of each."""
     n_done = 0
     n_legs = 0
-    if services_due:
-        for i in range(t.service_until.shape[0]):
-            if t.service_until[i] <= now + 1e-9:
-                if finish_service(t, i):
-                    done[n_done] = i
-                    n_done += 1
-                elif draw_legs:
-                    legs[n_legs] = i
-                    n_legs += 1
-    n_arrived = _arrivals_c(pos, t.target, t.trigger, arrived)
-    for k in range(n_arrived):
-        arrive(t, arrived[k], now)
-    return n_done, n_legs, n_arrived
+    for i in range(t.service_until.shape[0]):
+        if t.service_until[i] <= now + 1e-9:
+            if finish_service(t, i):
+                done[n_done] = i
+                n_done += 1
+            elif draw_legs:
+                legs[n_legs] = i
+                n_legs += 1
+    return n_done, n_legs
 
 
-task_rules = compiled(_task_rules)
+end_services = compiled(_end_services)
 
 
 class Navigator:
@@ -1051,12 +1042,18 @@ def _run_ticks(
                 pos[robots_in[j], 1] = positions_in[slots[j], 1]
         ticks += 1
         now = ticks * dt
-        # the task rules at the end of the tick, in the order Simulation.end_tick fixes
+        # the task rules at the end of the tick: services ending, then arrivals (the order of
+        # the rules; Simulation._end_tick does what is left to Python after them)
         services_due = next_service <= now + 1e-9
         schedule_due = next_schedule <= now + 1e-9
-        n_done, n_legs, n_arrived = task_rules(
-            tasks, now, services_due, pos, arrived, done, legs, draw_legs
-        )
+        n_done = 0
+        n_legs = 0
+        if services_due:
+            n_done, n_legs = end_services(tasks, now, done, legs, draw_legs)
+        # then the arrivals: all found first, then handled robot by robot
+        n_arrived = _arrivals_c(pos, target, trigger, arrived)
+        for a in range(n_arrived):
+            arrive(tasks, arrived[a], now)
         event = services_due or n_arrived > 0 or schedule_due
         if event:
             next_service = math.inf
