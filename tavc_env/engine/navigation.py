@@ -100,7 +100,7 @@ def _clip(x: float, lo: float, hi: float) -> float:
     return lo if x < lo else hi if x > hi else x
 
 
-_clip_c = compiled(_clip)
+_clip_c = compiled(_clip, inline=True)
 
 
 def _wrap(x: float) -> float:
@@ -113,7 +113,7 @@ def _wrap(x: float) -> float:
     return t % (2.0 * math.pi) - math.pi
 
 
-_wrap_c = compiled(_wrap)
+_wrap_c = compiled(_wrap, inline=True)
 
 
 def _wall_room(x: float, y: float, nx: float, ny: float, width: float, height: float) -> float:
@@ -130,7 +130,7 @@ def _wall_room(x: float, y: float, nx: float, ny: float, width: float, height: f
     return room
 
 
-_wall_room_c = compiled(_wall_room)
+_wall_room_c = compiled(_wall_room, inline=True)
 
 
 def _steer_one(
@@ -243,7 +243,7 @@ def _steer_one(
     out_velocity[i, 1] = speed * hy
 
 
-_steer_one_c = compiled(_steer_one)
+_steer_one_c = compiled(_steer_one, inline=True)
 
 
 def _steer_all(
