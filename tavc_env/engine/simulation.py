@@ -291,7 +291,6 @@ class Simulation:
             patience_s=STUCK_PATIENCE_S,
             arrived=self._hits,
             stalled=self._stalled,
-            tasks=tasks.arrays,
             done=self._done,
             legs=self._legs,
             draw_legs=self.config.speed_noise > 0,
@@ -340,6 +339,7 @@ class Simulation:
                 self.jam_window_s,
                 self.jammed,
                 *self._tick_args,
+                *self.tasks.arrays,
             )
         )
         self.ticks += ran
