@@ -38,7 +38,7 @@ import math
 import os as _os
 import warnings as _warnings
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from llvmlite import ir
@@ -57,7 +57,7 @@ def compiled(fn: Callable[..., Any], inline: bool = False) -> Callable[..., Any]
     read-only install run by another user), compiled at every start, with one warning.
     `inline`: compiled into each compiled caller rather than called (a small function called
     per robot pair, where the call itself costs more than its arithmetic)."""
-    how = "always" if inline else "never"
+    how: Literal["always", "never"] = "always" if inline else "never"
     try:
         return _njit(cache=True, fastmath=False, nogil=True, inline=how)(fn)
     except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
