@@ -216,7 +216,9 @@ def _steer_one(
     err = _wrap_c(phi - heading[i])
     turn = _clip_c(err, -turn_step, turn_step)
     h = _wrap_c(heading[i] + turn)
-    c = max(math.cos(err - turn), 0.0)
+    # cos(err - turn), clipped at 0; within the turn step err - turn is 0.0 and its cosine 1.0
+    # exactly, without the library call
+    c = 1.0 if turn == err else max(math.cos(err - turn), 0.0)
     speed = min(top_speed[i] * c * c, gdist / APPROACH_TIME_S)
 
     hx = math.cos(h)
@@ -815,13 +817,14 @@ class Navigator:
 
 
 # -- the compiled tick ---------------------------------------------------------------------------
-# Steer, push velocities, step Chipmunk, read positions, and check arrivals and stuck robots, tick
-# after tick, without returning to Python while nothing happens. Each tick makes the calls a tick
-# driven from Python made, in the same order and on the same arrays (the controller above,
-# pymunk's batch iterators and `cpSpaceStep` through the addresses in `World.c_calls`), so
-# trajectories are bit for bit the same. The loop hands back to `Simulation` the first tick whose
-# end needs the task rules (a service or schedule entry due, an arrival, a stuck robot, a jam
-# check); Python finishes that tick. It lives in this file with every compiled function it calls:
+# Steer, push velocities, step Chipmunk, read positions, run the task rules (services ending,
+# arrivals) and check stuck robots, tick after tick, without returning to Python while nothing
+# needs it. Each tick makes the calls a tick driven from Python made, in the same order and on the
+# same arrays (the controller above, pymunk's batch iterators and `cpSpaceStep` through the
+# addresses in `World.c_calls`, the task rules above), so trajectories are bit for bit the same.
+# The loop hands back to `Simulation` the first tick whose end needs Python (a completion, a new
+# leg's speed draw, a schedule entry due, a stuck robot, a jam check); Python finishes that tick
+# (`Simulation._end_tick`). It lives in this file with every compiled function it calls:
 # numba's on-disk cache of a function is renewed when its own file changes, not when a function
 # it calls in another file does.
 # Addresses travel as int64 (numba's type of a Python int) and become pointers only in the call.
