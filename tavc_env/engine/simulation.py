@@ -118,7 +118,7 @@ class Simulation:
         self.speeds = np.array([r.speed for r in config.robots], dtype=float)
         self._pos = np.zeros((n, 2))  # positions after the last physics step
         self._dt = config.dt
-        self._tick_args: TickArgs | None = None
+        self._tick_args: tuple[object, ...] = ()  # `TickArgs`, then the task rules' arrays
         self._bound: tuple[object, ...] = (None,) * 7
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
@@ -260,7 +260,7 @@ class Simulation:
         world, nav, tasks = self.world, self.nav, self.tasks
         self._pos = world.pos
         scatter = world.scatter()
-        self._tick_args = TickArgs(
+        tick_args = TickArgs(
             c_calls=world.c_calls,
             pos=world.pos,
             heading=self.heading,  # read and written in place: each robot reads only its own
@@ -298,6 +298,7 @@ class Simulation:
             everyone=np.arange(self.config.n_robots),
             **dict(zip(_GRID_FIELDS, grid_scratch(self.config.n_robots))),
         )
+        self._tick_args = (*tick_args, *tasks.arrays)
         # the world itself too: a new World starts counting versions anew, and the compiled
         # tick must never call into the C space of one that is gone
         self._bound = (
@@ -326,7 +327,6 @@ class Simulation:
             or bound[6] is not self._progress_pos
         ):
             self._bind()
-        assert self._tick_args is not None
         ran, stage, n_done, n_legs, n_stalled, event, progressed, next_service, progress_s = (
             run_ticks(
                 max_ticks,
@@ -339,7 +339,6 @@ class Simulation:
                 self.jam_window_s,
                 self.jammed,
                 *self._tick_args,
-                *self.tasks.arrays,
             )
         )
         self.ticks += ran
