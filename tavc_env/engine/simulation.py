@@ -246,8 +246,8 @@ class Simulation:
         n_ticks = max(1, round(max_duration_s / self.config.dt))
         done = 0
         while done < n_ticks:
-            # Observers see every tick; otherwise the compiled loop runs the quiet ticks at once
-            # (they end in no event, so no decision epoch can fall among them).
+            # Observers see every tick; otherwise the compiled loop runs ticks, task events
+            # included, until one ends in something for Python (every decision epoch does).
             done += self._ticks(out, 1 if self._observers else n_ticks - done)
             if stop_on_decision and (out.completions or out.repaired):
                 break
