@@ -417,12 +417,11 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         assert isinstance(actions, dict)
         for agent in actions:
             self._agent_index(agent, "action key")
-        deciding = self.sim.tasks.needs_decision()
-        choices = []
-        for i in np.flatnonzero(deciding):
-            agent = self.possible_agents[i]
-            choices.append((int(i), self._circuit_of(agent, actions.get(agent))))
-        return choices
+        agents = self.possible_agents
+        return [
+            (i, self._circuit_of(agents[i], actions.get(agents[i])))
+            for i in self.sim.tasks.needs_decision().nonzero()[0].tolist()
+        ]
 
     def must_decide(self, agent: str) -> bool:
         """Whether `agent` has to be given an action in the next `step` (its info's

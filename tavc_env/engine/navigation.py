@@ -38,7 +38,7 @@ import math
 import os as _os
 import warnings as _warnings
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from llvmlite import ir
@@ -52,11 +52,14 @@ from tavc_env.config import ArenaConfig
 _cache_warned: list[str] = []
 
 
-def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
+def compiled(fn: Callable[..., Any], inline: bool = False) -> Callable[..., Any]:
     """numba's compiled `fn`, cached on disk; where no cache folder can be written (a
-    read-only install run by another user), compiled at every start, with one warning."""
+    read-only install run by another user), compiled at every start, with one warning.
+    `inline`: compiled into each compiled caller rather than called (a small function called
+    per robot pair, where the call itself costs more than its arithmetic)."""
+    how: Literal["always", "never"] = "always" if inline else "never"
     try:
-        return _njit(cache=True, fastmath=False, nogil=True)(fn)
+        return _njit(cache=True, fastmath=False, nogil=True, inline=how)(fn)
     except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
         if "no locator" not in str(error):
             raise
@@ -73,7 +76,7 @@ def compiled(fn: Callable[..., Any]) -> Callable[..., Any]:
             RuntimeWarning,
             stacklevel=2,
         )
-    return _njit(cache=False, fastmath=False, nogil=True)(fn)
+    return _njit(cache=False, fastmath=False, nogil=True, inline=how)(fn)
 
 
 STEER_GAIN = 1.5  # sideways deflection per unit of obstacle weight
@@ -97,7 +100,7 @@ def _clip(x: float, lo: float, hi: float) -> float:
     return lo if x < lo else hi if x > hi else x
 
 
-_clip_c = compiled(_clip)
+_clip_c = compiled(_clip, inline=True)
 
 
 def _wrap(x: float) -> float:
@@ -110,7 +113,7 @@ def _wrap(x: float) -> float:
     return t % (2.0 * math.pi) - math.pi
 
 
-_wrap_c = compiled(_wrap)
+_wrap_c = compiled(_wrap, inline=True)
 
 
 def _wall_room(x: float, y: float, nx: float, ny: float, width: float, height: float) -> float:
@@ -127,7 +130,7 @@ def _wall_room(x: float, y: float, nx: float, ny: float, width: float, height: f
     return room
 
 
-_wall_room_c = compiled(_wall_room)
+_wall_room_c = compiled(_wall_room, inline=True)
 
 
 def _steer_one(
@@ -213,7 +216,9 @@ def _steer_one(
     err = _wrap_c(phi - heading[i])
     turn = _clip_c(err, -turn_step, turn_step)
     h = _wrap_c(heading[i] + turn)
-    c = max(math.cos(err - turn), 0.0)
+    # cos(err - turn), clipped at 0; within the turn step err - turn is 0.0 and its cosine 1.0
+    # exactly, without the library call
+    c = 1.0 if turn == err else max(math.cos(err - turn), 0.0)
     speed = min(top_speed[i] * c * c, gdist / APPROACH_TIME_S)
 
     hx = math.cos(h)
@@ -240,7 +245,7 @@ def _steer_one(
     out_velocity[i, 1] = speed * hy
 
 
-_steer_one_c = compiled(_steer_one)
+_steer_one_c = compiled(_steer_one, inline=True)
 
 
 def _steer_all(
@@ -522,20 +527,7 @@ def _arrivals(pos: np.ndarray, target: np.ndarray, trigger: np.ndarray, out: np.
     return k
 
 
-arrivals = compiled(_arrivals)
-
-
-def _stuck(
-    pos: np.ndarray,
-    target: np.ndarray,
-    active: np.ndarray,
-    anchor: np.ndarray,
-    anchor_time: np.ndarray,
-    now: float,
-    patience_s: float,
-    out: np.ndarray,
-) -> int:
-    return _stuck_of_c(pos, target, active, active, anchor, anchor_time, now, patience_s, out)
+_arrivals_c = compiled(_arrivals)
 
 
 def _stuck_of(
@@ -574,37 +566,241 @@ def _stuck_of(
 
 _stuck_of_c = compiled(_stuck_of)
 stuck_of = _stuck_of_c
-stuck = compiled(_stuck)
 
 
-def _after_step(
-    pos: np.ndarray,
-    target: np.ndarray,
-    trigger: np.ndarray,
-    moving: np.ndarray,
-    present: np.ndarray,
-    anchor: np.ndarray,
-    anchor_time: np.ndarray,
-    now: float,
-    patience_s: float,
-    stuck_too: bool,
-    arrived: np.ndarray,
-    stalled: np.ndarray,
+# -- the task rules, compiled --------------------------------------------------------------------
+# The rules of `tavc_env.engine.tasks` (see its docstring) on the task cycle's arrays, so that the
+# compiled tick runs them itself and returns to Python only at a decision epoch or a random draw.
+# They live in this file because the compiled tick calls them (see the note above `_VOID_P`).
+# Phase and mode codes (`tavc_env.engine.tasks.Phase`, `Mode` name them)
+DECIDING, TO_SOURCE, TO_SINK, BROKEN = 0, 1, 2, 3
+IDLE, TRAVEL, QUEUED, DOCKING, SERVICE = 0, 1, 2, 3, 4
+NEVER = -1.0  # a trigger that never fires
+
+
+class TaskArrays(NamedTuple):
+    """The task cycle's state as the compiled rules take it: per robot, then per station (source
+    of circuit c: 2c, its sink 2c + 1), padded to the largest station, counts saying how much of
+    each row is used."""
+
+    phase: np.ndarray
+    mode: np.ndarray
+    circuit: np.ndarray
+    station: np.ndarray  # the station a robot heads for or stands at, -1: none
+    bay: np.ndarray  # the bay a docking or served robot holds, -1: none
+    decision_time: np.ndarray
+    service_until: np.ndarray
+    trigger: np.ndarray  # distance to target that fires an event; NEVER: none
+    target: np.ndarray  # (n, 2)
+    completed: np.ndarray
+    moving: np.ndarray  # robots driving toward a target (kept in sync with `mode`)
+    service_scale: np.ndarray
+    docks: np.ndarray  # (stations, bays, 2) bay positions, the dock first
+    n_bays: np.ndarray
+    slots: np.ndarray  # (stations, k, 2) waiting positions, in the order the line fills them
+    n_slots: np.ndarray
+    first_row: np.ndarray  # how many slots stand in the first row, along the wall from the dock
+    service_s: np.ndarray
+    occupants: np.ndarray  # (stations, bays) the robot in each bay, -1: free
+    line: np.ndarray  # (stations, n) the waiting robots, head first
+    line_len: np.ndarray
+    join_radius_m: float
+    dock_tolerance_m: float
+
+
+def _set_mode(t: TaskArrays, i: int, mode: int) -> None:
+    t.mode[i] = mode
+    t.moving[i] = TRAVEL <= mode <= DOCKING
+
+
+set_mode = compiled(_set_mode)
+
+
+def _aim(t: TaskArrays, i: int, s: int) -> None:
+    """Robot i, travelling to station s, drives at its dock, or at the end of a line that has
+    spilled beyond its first row."""
+    tail = t.line_len[s]
+    if t.first_row[s] <= tail < t.n_slots[s]:
+        t.target[i, 0] = t.slots[s, tail, 0]
+        t.target[i, 1] = t.slots[s, tail, 1]
+    else:
+        t.target[i, 0] = t.docks[s, 0, 0]
+        t.target[i, 1] = t.docks[s, 0, 1]
+    t.trigger[i] = t.join_radius_m
+
+
+_aim_c = compiled(_aim)
+
+
+def _travel_to(t: TaskArrays, i: int, s: int) -> None:
+    t.station[i] = s
+    set_mode(t, i, TRAVEL)
+    _aim_c(t, i, s)
+
+
+_travel_to_c = compiled(_travel_to)
+
+
+def _line_changed(t: TaskArrays, s: int) -> None:
+    """Re-aim the robots travelling to station s and move its waiting robots up."""
+    for k in range(t.line_len[s]):
+        j = t.line[s, k]
+        t.target[j, 0] = t.slots[s, k, 0]
+        t.target[j, 1] = t.slots[s, k, 1]
+    for j in range(t.mode.shape[0]):
+        if t.mode[j] == TRAVEL and t.station[j] == s:
+            _aim_c(t, j, s)
+
+
+_line_changed_c = compiled(_line_changed)
+
+
+def _dock(t: TaskArrays, i: int, s: int, bay: int) -> None:
+    t.occupants[s, bay] = i
+    t.bay[i] = bay
+    set_mode(t, i, DOCKING)
+    t.target[i, 0] = t.docks[s, bay, 0]
+    t.target[i, 1] = t.docks[s, bay, 1]
+    t.trigger[i] = t.dock_tolerance_m
+
+
+_dock_c = compiled(_dock)
+
+
+def _free_bay(t: TaskArrays, s: int) -> int:
+    """Station s's free bay nearest the dock, or -1."""
+    for b in range(t.n_bays[s]):
+        if t.occupants[s, b] < 0:
+            return b
+    return -1
+
+
+free_bay = compiled(_free_bay)
+
+
+def _choose(t: TaskArrays, i: int, circuit: int, now: float) -> None:
+    """Robot i (deciding) starts a task on `circuit`: off to its source."""
+    t.phase[i] = TO_SOURCE
+    t.circuit[i] = circuit
+    t.decision_time[i] = now
+    _travel_to_c(t, i, 2 * circuit)
+
+
+choose = compiled(_choose)
+
+
+def _arrive(t: TaskArrays, i: int, now: float) -> None:
+    """Robot i reached the distance that fires its current trigger: travelling, it joins the
+    station's line (or docks in a free bay); docking, its service starts."""
+    if t.mode[i] == TRAVEL:
+        s = t.station[i]
+        bay = free_bay(t, s)
+        if bay >= 0 and t.line_len[s] == 0:
+            _dock_c(t, i, s, bay)
+        else:
+            t.line[s, t.line_len[s]] = i
+            t.line_len[s] += 1
+            set_mode(t, i, QUEUED)
+            t.trigger[i] = NEVER
+            _line_changed_c(t, s)
+    elif t.mode[i] == DOCKING:
+        set_mode(t, i, SERVICE)
+        t.trigger[i] = NEVER
+        t.service_until[i] = now + t.service_s[t.station[i]] * t.service_scale[i]
+
+
+arrive = compiled(_arrive)
+
+
+def _leave_line(t: TaskArrays, s: int, k: int) -> None:
+    """The robot at place k of station s's line leaves it; those behind move up one place."""
+    for a in range(k, t.line_len[s] - 1):
+        t.line[s, a] = t.line[s, a + 1]
+    t.line_len[s] -= 1
+    t.line[s, t.line_len[s]] = -1
+
+
+_leave_line_c = compiled(_leave_line)
+
+
+def _release(t: TaskArrays, i: int) -> None:
+    """Robot i leaves its bay; the head of the line, if any, takes it."""
+    s = t.station[i]
+    bay = t.bay[i]
+    t.occupants[s, bay] = -1
+    t.bay[i] = -1
+    if t.line_len[s] > 0:
+        head = t.line[s, 0]
+        _leave_line_c(t, s, 0)
+        _dock_c(t, head, s, bay)
+        _line_changed_c(t, s)
+
+
+_release_c = compiled(_release)
+
+
+def _finish_service(t: TaskArrays, i: int) -> bool:
+    """Robot i's loading or unloading ended: loaded, it is off to the sink (False); unloaded, its
+    task is complete and it must decide (True)."""
+    t.service_until[i] = math.inf
+    _release_c(t, i)
+    if t.phase[i] == TO_SOURCE:
+        t.phase[i] = TO_SINK
+        _travel_to_c(t, i, 2 * t.circuit[i] + 1)
+        return False
+    t.phase[i] = DECIDING
+    set_mode(t, i, IDLE)
+    t.station[i] = -1
+    t.trigger[i] = NEVER
+    t.completed[i] += 1
+    return True
+
+
+finish_service = compiled(_finish_service)
+
+
+def _break_down(t: TaskArrays, i: int) -> None:
+    """Robot i stops serving: it leaves any line or bay; its task is abandoned."""
+    s = t.station[i]
+    if s >= 0:
+        if t.bay[i] >= 0:
+            _release_c(t, i)
+        else:
+            for k in range(t.line_len[s]):
+                if t.line[s, k] == i:
+                    _leave_line_c(t, s, k)
+                    _line_changed_c(t, s)
+                    break
+    t.phase[i] = BROKEN
+    set_mode(t, i, IDLE)
+    t.station[i] = -1
+    t.trigger[i] = NEVER
+    t.service_until[i] = math.inf
+
+
+break_down = compiled(_break_down)
+
+
+def _end_services(
+    t: TaskArrays, now: float, done: np.ndarray, legs: np.ndarray, draw_legs: bool
 ) -> tuple[int, int]:
-    """`arrivals`, then, if nobody arrived and `stuck_too`, `stuck` over the robots moving on the
-    floor, in one call (the common tick). Returns (arrived count, stalled count or -1 if the stuck
-    check was not run because an arrival may change who is moving)."""
-    k = _arrivals_c(pos, target, trigger, arrived)
-    if k > 0 or not stuck_too:
-        return k, -1
-    return 0, _stuck_of_c(
-        pos, target, moving, present, anchor, anchor_time, now, patience_s, stalled
-    )
+    """The services due at `now` end, robot by robot. Writes the robots that completed a task
+    into `done` and, if `draw_legs`, those that start a leg to the sink (their speed is drawn
+    anew, in Python) into `legs`; returns how many of each."""
+    n_done = 0
+    n_legs = 0
+    for i in range(t.service_until.shape[0]):
+        if t.service_until[i] <= now + 1e-9:
+            if finish_service(t, i):
+                done[n_done] = i
+                n_done += 1
+            elif draw_legs:
+                legs[n_legs] = i
+                n_legs += 1
+    return n_done, n_legs
 
 
-_arrivals_c = arrivals
-_stuck_c = stuck
-after_step = compiled(_after_step)
+end_services = compiled(_end_services)
 
 
 class Navigator:
@@ -621,13 +817,14 @@ class Navigator:
 
 
 # -- the compiled tick ---------------------------------------------------------------------------
-# Steer, push velocities, step Chipmunk, read positions, and check arrivals and stuck robots, tick
-# after tick, without returning to Python while nothing happens. Each tick makes the calls a tick
-# driven from Python made, in the same order and on the same arrays (the controller above,
-# pymunk's batch iterators and `cpSpaceStep` through the addresses in `World.c_calls`), so
-# trajectories are bit for bit the same. The loop hands back to `Simulation` the first tick whose
-# end needs the task rules (a service or schedule entry due, an arrival, a stuck robot, a jam
-# check); Python finishes that tick. It lives in this file with every compiled function it calls:
+# Steer, push velocities, step Chipmunk, read positions, run the task rules (services ending,
+# arrivals) and check stuck robots, tick after tick, without returning to Python while nothing
+# needs it. Each tick makes the calls a tick driven from Python made, in the same order and on the
+# same arrays (the controller above, pymunk's batch iterators and `cpSpaceStep` through the
+# addresses in `World.c_calls`, the task rules above), so trajectories are bit for bit the same.
+# The loop hands back to `Simulation` the first tick whose end needs Python (a completion, a new
+# leg's speed draw, a schedule entry due, a stuck robot, a jam check); Python finishes that tick
+# (`Simulation._end_tick`). It lives in this file with every compiled function it calls:
 # numba's on-disk cache of a function is renewed when its own file changes, not when a function
 # it calls in another file does.
 # Addresses travel as int64 (numba's type of a Python int) and become pointers only in the call.
@@ -689,9 +886,11 @@ C_STEP, C_EACH_BODY, C_SPACE, C_SET_VISIT, C_SET_DATA, C_SET_FLOATS = 0, 1, 2, 3
 C_GET_VISIT, C_GET_DATA, C_GET_FLOATS = 6, 7, 8
 
 
-QUIET = 0  # every tick ran to its end: nothing for the task rules
-DUE = 1  # the last tick's physics ran; a service or schedule entry is due: Python checks it all
-CHECKED = 2  # the last tick's physics and after-step check ran; its results need the task rules
+QUIET = 0  # every tick ran to its end with no event for Python
+SCHEDULE = 1  # the last tick's task events ran; a schedule entry is due: Python runs it, then the
+# stuck check, and finishes the tick
+HANDBACK = 2  # the last tick's task events and stuck check ran; Python finishes the tick
+# (completions, speed draws of new legs, escapes, the jam watch)
 
 
 class TickArgs(NamedTuple):
@@ -730,6 +929,14 @@ class TickArgs(NamedTuple):
     patience_s: float
     arrived: np.ndarray
     stalled: np.ndarray
+    # the task rules' outputs (robots that completed a task, robots starting a leg whose speed
+    # Python draws), the jam watch's positions at the last task event (the rules' state, a
+    # `TaskArrays`, follows these arguments field by field: numba takes a named tuple argument
+    # at several microseconds per call, its fields at a tenth of that)
+    done: np.ndarray
+    legs: np.ndarray
+    draw_legs: bool
+    progress_pos: np.ndarray
     # scratch kept from call to call: arange(n) for all pairs, the neighbour grid's arrays
     everyone: np.ndarray
     grid_cx: np.ndarray
@@ -750,6 +957,7 @@ def _run_ticks(
     next_schedule: float,
     progress_s: float,
     jam_window_s: float,
+    jammed: bool,
     c_calls: np.ndarray,
     pos: np.ndarray,
     heading: np.ndarray,
@@ -780,6 +988,10 @@ def _run_ticks(
     patience_s: float,
     arrived: np.ndarray,
     stalled: np.ndarray,
+    done: np.ndarray,
+    legs: np.ndarray,
+    draw_legs: bool,
+    progress_pos: np.ndarray,
     everyone: np.ndarray,
     grid_cx: np.ndarray,
     grid_cy: np.ndarray,
@@ -788,9 +1000,14 @@ def _run_ticks(
     grid_keys: np.ndarray,
     grid_others: np.ndarray,
     grid_held: np.ndarray,
-) -> tuple[int, int, int, int]:
-    """Up to `max_ticks` ticks from tick number `ticks`. Returns (ticks run, QUIET / DUE /
-    CHECKED, arrived count, stalled count) with the counts of `after_step` if CHECKED."""
+    *task_fields: Any,
+) -> tuple[int, int, int, int, int, bool, bool, float, float]:
+    """Up to `max_ticks` ticks from tick number `ticks`, each with its task events, stopping after
+    the first tick that needs Python: a completion (a decision epoch), a new leg's speed draw, a
+    schedule entry due, a stuck robot, a jam check. Returns (ticks run, QUIET / SCHEDULE /
+    HANDBACK, completed, legs, stalled (-1: not checked yet), whether the last tick had a task
+    event, whether its progress was recorded here, the next service end, the progress time)."""
+    tasks = TaskArrays(*task_fields)
     space = c_calls[C_SPACE]
     each = c_calls[C_EACH_BODY]
     for k in range(max_ticks):
@@ -830,16 +1047,55 @@ def _run_ticks(
                 pos[robots_in[j], 1] = positions_in[slots[j], 1]
         ticks += 1
         now = ticks * dt
-        # the first checks of Simulation._post_step, in its order
-        if next_service <= now + 1e-9 or next_schedule <= now + 1e-9:
-            return k + 1, DUE, 0, 0
-        n_arrived, n_stalled = after_step(
-            pos, target, trigger, moving, present, anchor, anchor_time, now, patience_s, True,
-            arrived, stalled,
-        )  # fmt: skip
-        if n_arrived != 0 or n_stalled != 0 or now - progress_s >= jam_window_s:
-            return k + 1, CHECKED, n_arrived, n_stalled
-    return max_ticks, QUIET, 0, 0
+        # the task rules at the end of the tick: services ending, then arrivals (the order of
+        # the rules; Simulation._end_tick does what is left to Python after them)
+        services_due = next_service <= now + 1e-9
+        schedule_due = next_schedule <= now + 1e-9
+        n_done = 0
+        n_legs = 0
+        if services_due:
+            n_done, n_legs = end_services(tasks, now, done, legs, draw_legs)
+        # then the arrivals: all found first, then handled robot by robot
+        n_arrived = _arrivals_c(pos, target, trigger, arrived)
+        for a in range(n_arrived):
+            arrive(tasks, arrived[a], now)
+        event = services_due or n_arrived > 0 or schedule_due
+        if event:
+            next_service = math.inf
+            for i in range(tasks.service_until.shape[0]):
+                next_service = min(next_service, tasks.service_until[i])
+        if schedule_due:
+            return k + 1, SCHEDULE, n_done, n_legs, -1, event, False, next_service, progress_s
+        n_stalled = _stuck_of_c(
+            pos, target, moving, present, anchor, anchor_time, now, patience_s, stalled
+        )
+        progressed = False
+        if event and not jammed and n_stalled == 0:
+            # Simulation.progress (a jam's end is Python's to record)
+            progress_s = now
+            for i in range(pos.shape[0]):
+                progress_pos[i, 0] = pos[i, 0]
+                progress_pos[i, 1] = pos[i, 1]
+            progressed = True
+        if (
+            n_done != 0
+            or n_legs != 0
+            or n_stalled != 0
+            or (event and not progressed)
+            or (not event and now - progress_s >= jam_window_s)
+        ):
+            return (
+                k + 1,
+                HANDBACK,
+                n_done,
+                n_legs,
+                n_stalled,
+                event,
+                progressed,
+                next_service,
+                progress_s,
+            )
+    return max_ticks, QUIET, 0, 0, 0, False, False, next_service, progress_s
 
 
 run_ticks = compiled(_run_ticks)

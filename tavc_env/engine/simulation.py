@@ -24,15 +24,14 @@ from tavc_env.engine.base import (
     without_repairs,
 )
 from tavc_env.engine.navigation import (
-    CHECKED,
     ESCAPE_DISTANCE_M,
     ESCAPE_TIME_S,
     GRID_MIN_ROBOTS,
     QUIET,
+    SCHEDULE,
     STUCK_PATIENCE_S,
     Navigator,
     TickArgs,
-    after_step,
     grid_scratch,
     neighbour_cell_m,
     run_ticks,
@@ -102,6 +101,8 @@ class Simulation:
 
     The physics engine behind the `Engine` protocol (`tavc_env.engine.base`)."""
 
+    _progress_s: float  # (set by `_reset_jam_watch`; declared for the type checker)
+
     def __init__(self, config: ArenaConfig, jam_window_s: float = JAM_WINDOW_S) -> None:
         """`jam_window_s`: the jam detector's window (see `jammed`); math.inf turns it off."""
         if not (isinstance(jam_window_s, (int, float)) and jam_window_s > 0):
@@ -117,8 +118,8 @@ class Simulation:
         self.speeds = np.array([r.speed for r in config.robots], dtype=float)
         self._pos = np.zeros((n, 2))  # positions after the last physics step
         self._dt = config.dt
-        self._tick_args: TickArgs | None = None
-        self._bound: tuple[object, ...] = (None,) * 6
+        self._tick_args: tuple[object, ...] = ()  # `TickArgs`, then the task rules' arrays
+        self._bound: tuple[object, ...] = (None,) * 7
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
             neighbour_cell_m(config.robot_radius, config.sensing_range_m)
@@ -141,6 +142,8 @@ class Simulation:
         self.heading = np.zeros(n)
         self._hits = np.zeros(n, dtype=np.int64)  # the compiled tick's outputs (first k rows)
         self._stalled = np.zeros(n, dtype=np.int64)
+        self._done = np.zeros(n, dtype=np.int64)
+        self._legs = np.zeros(n, dtype=np.int64)
         self._next_service = math.inf  # earliest end of a loading / unloading
         self._anchor = np.zeros((n, 2))  # where each robot last made progress ...
         self._anchor_time = np.zeros(n)  # ... and when
@@ -243,8 +246,8 @@ class Simulation:
         n_ticks = max(1, round(max_duration_s / self.config.dt))
         done = 0
         while done < n_ticks:
-            # Observers see every tick; otherwise the compiled loop runs the quiet ticks at once
-            # (they end in no event, so no decision epoch can fall among them).
+            # Observers see every tick; otherwise the compiled loop runs ticks, task events
+            # included, until one ends in something for Python (every decision epoch does).
             done += self._ticks(out, 1 if self._observers else n_ticks - done)
             if stop_on_decision and (out.completions or out.repaired):
                 break
@@ -257,7 +260,7 @@ class Simulation:
         world, nav, tasks = self.world, self.nav, self.tasks
         self._pos = world.pos
         scatter = world.scatter()
-        self._tick_args = TickArgs(
+        tick_args = TickArgs(
             c_calls=world.c_calls,
             pos=world.pos,
             heading=self.heading,  # read and written in place: each robot reads only its own
@@ -288,84 +291,88 @@ class Simulation:
             patience_s=STUCK_PATIENCE_S,
             arrived=self._hits,
             stalled=self._stalled,
+            done=self._done,
+            legs=self._legs,
+            draw_legs=self.config.speed_noise > 0,
+            progress_pos=self._progress_pos,
             everyone=np.arange(self.config.n_robots),
             **dict(zip(_GRID_FIELDS, grid_scratch(self.config.n_robots))),
         )
+        self._tick_args = (*tick_args, *tasks.arrays)
         # the world itself too: a new World starts counting versions anew, and the compiled
         # tick must never call into the C space of one that is gone
-        self._bound = (world, world.version, tasks, self.heading, self.top_speed, self._anchor)
+        self._bound = (
+            world,
+            world.version,
+            tasks,
+            self.heading,
+            self.top_speed,
+            self._anchor,
+            self._progress_pos,
+        )
 
     def _ticks(self, out: Advance, max_ticks: int) -> int:
-        """Run up to `max_ticks` ticks, stopping after the first that ends in a task event (see
+        """Run up to `max_ticks` ticks, stopping after the first that needs Python (see
         `tavc_env.engine.navigation.run_ticks`); returns how many ran."""
         if self._observers:
             marks = (len(out.completions), len(out.broken), len(out.repaired), self.escapes)
-        world, tasks = self.world, self.tasks
         bound = self._bound
         if (
-            bound[0] is not world
-            or bound[1] != world.version
-            or bound[2] is not tasks
+            bound[0] is not self.world
+            or bound[1] != self.world.version
+            or bound[2] is not self.tasks
             or bound[3] is not self.heading
             or bound[4] is not self.top_speed
             or bound[5] is not self._anchor
+            or bound[6] is not self._progress_pos
         ):
             self._bind()
-        assert self._tick_args is not None
-        ran, status, n_arrived, n_stalled = run_ticks(
-            max_ticks,
-            self.ticks,
-            self._dt,
-            self._escapes_end,
-            self._next_service,
-            float(self._schedule[0].at_s) if self._schedule else math.inf,
-            self._progress_s,
-            self.jam_window_s,
-            *self._tick_args,
+        ran, stage, n_done, n_legs, n_stalled, event, progressed, next_service, progress_s = (
+            run_ticks(
+                max_ticks,
+                self.ticks,
+                self._dt,
+                self._escapes_end,
+                self._next_service,
+                float(self._schedule[0].at_s) if self._schedule else math.inf,
+                self._progress_s,
+                self.jam_window_s,
+                self.jammed,
+                *self._tick_args,
+            )
         )
         self.ticks += ran
         self.time_s = self.ticks * self._dt
-        if status != QUIET:
-            self._end_tick(out, (n_arrived, n_stalled) if status == CHECKED else None)
+        self._next_service = float(next_service)
+        self._progress_s = float(progress_s)
+        if stage != QUIET:
+            self._end_tick(out, stage, n_done, n_legs, n_stalled, event, progressed)
         if self._observers:
             self._notify(out, marks)
         return int(ran)
 
-    def _end_tick(self, out: Advance, checked: tuple[int, int] | None) -> None:
-        """The task rules at the end of a tick that needs them; `checked`: the counts of the
-        after-step check if the compiled loop already ran it (no service or schedule entry due)."""
+    def _end_tick(
+        self,
+        out: Advance,
+        stage: int,
+        n_done: int,
+        n_legs: int,
+        n_stalled: int,
+        event: bool,
+        progressed: bool,
+    ) -> None:
+        """What the compiled tick leaves to Python at the end of a tick, in the order of the
+        rules: the speed draws of the legs that started (in robot order, where the service
+        ends drew them), the completions, the schedule and then the stuck check (`SCHEDULE`),
+        escapes, and the jam watch."""
         tasks = self.tasks
         now = self.time_s
-        services_due = self._next_service <= now + 1e-9
-        schedule_due = bool(self._schedule) and self._schedule[0].at_s <= now + 1e-9
-        if services_due:
-            for i in np.flatnonzero(tasks.service_until <= now + 1e-9):
-                completion = tasks.finish_service(int(i), now)
-                if completion is None:
-                    self._new_leg(int(i))
-                else:
-                    out.completions.append(completion)
-        if checked is None:
-            checked = after_step(
-                self._pos,
-                tasks.target,
-                tasks.trigger,
-                tasks.moving,
-                self.world.in_space,
-                self._anchor,
-                self._anchor_time,
-                now,
-                STUCK_PATIENCE_S,
-                not schedule_due,
-                self._hits,
-                self._stalled,
-            )
-        n_arrived, n_stalled = checked
-        for k in range(n_arrived):
-            tasks.arrive(int(self._hits[k]), now)
-        if schedule_due:
+        for k in range(n_legs):
+            self._new_leg(int(self._legs[k]))
+        for k in range(n_done):
+            out.completions.append(tasks.completion(int(self._done[k]), now))
+        if stage == SCHEDULE:
             self._run_schedule(now, out)
-        if n_stalled < 0:
             n_stalled = stuck_of(
                 self._pos,
                 tasks.target,
@@ -379,9 +386,10 @@ class Simulation:
             )
         for k in range(n_stalled):
             self._escape(int(self._stalled[k]), now)
-        if services_due or n_arrived or schedule_due:
-            self._next_service = min(tasks.service_until.tolist())  # np.min's value, cheaper
-            self._progress(now)
+        if event:
+            if not progressed:
+                self._next_service = min(tasks.service_until.tolist())  # np.min's value, cheaper
+                self._progress(now)
         elif now - self._progress_s >= self.jam_window_s:
             self._check_jam(now)
 
@@ -431,8 +439,8 @@ class Simulation:
     # -- liveness ------------------------------------------------------------------------------
     def _reset_jam_watch(self) -> None:
         self._progress_s = 0.0  # time of the last task event (arrival, service end, repair ...)
-        self._progress_pos = self._pos.copy()  # where every robot stood then
-        self.jammed = False
+        self._progress_pos: np.ndarray = self._pos.copy()  # where every robot stood then
+        self.jammed: bool = False
         self.jams = 0  # jams detected since reset
         self.jammed_s = 0.0  # simulated time spent jammed since reset
         self.jam_started_s = -1.0
@@ -442,7 +450,7 @@ class Simulation:
             self.jammed = False
             self.jammed_s += now - self.jam_started_s
         self._progress_s = now
-        self._progress_pos = self._pos.copy()
+        self._progress_pos[:] = self._pos
 
     def _check_jam(self, now: float) -> None:
         """No task event for `jam_window_s`: a jam if no moving robot got `JAM_MOTION_M` away
@@ -459,7 +467,7 @@ class Simulation:
             self.jammed_s += now - self.jam_started_s
             self.jammed = False
         self._progress_s = now  # look again one window on
-        self._progress_pos = self._pos.copy()
+        self._progress_pos[:] = self._pos
 
     @property
     def time_jammed_s(self) -> float:

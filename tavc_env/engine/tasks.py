@@ -25,21 +25,23 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from tavc_env.config import ArenaConfig
+from tavc_env.engine import navigation as rules
+from tavc_env.engine.navigation import TaskArrays
 from tavc_env.layout import stack_rows
 
 
 class Phase(enum.IntEnum):
     """What a robot is doing, as reported in infos."""
 
-    DECIDING = 0
-    TO_SOURCE = 1
-    TO_SINK = 2
-    BROKEN = 3
+    DECIDING = rules.DECIDING
+    TO_SOURCE = rules.TO_SOURCE
+    TO_SINK = rules.TO_SINK
+    BROKEN = rules.BROKEN
 
 
 PHASE_NAMES = {
@@ -53,36 +55,52 @@ PHASE_NAMES = {
 class Mode(enum.IntEnum):
     """How a robot moves within its phase."""
 
-    IDLE = 0  # deciding or broken: stands still
-    TRAVEL = 1  # driving toward a station
-    QUEUED = 2  # in a station's line, at (or driving to) its waiting slot
-    DOCKING = 3  # the station is its: driving onto the dock
-    SERVICE = 4  # standing on the dock while loaded / unloaded
+    IDLE = rules.IDLE  # deciding or broken: stands still
+    TRAVEL = rules.TRAVEL  # driving toward a station
+    QUEUED = rules.QUEUED  # in a station's line, at (or driving to) its waiting slot
+    DOCKING = rules.DOCKING  # the station is its: driving onto the dock
+    SERVICE = rules.SERVICE  # standing on the dock while loaded / unloaded
 
 
-NEVER = -1.0
-# The codes as plain ints for the rules below: comparing a numpy scalar with an IntEnum member
-# goes through the enum class's attribute lookup and a conversion, at every event
-_DECIDING, _TO_SOURCE, _TO_SINK, _BROKEN = (int(p) for p in Phase)
-_IDLE, _TRAVEL, _QUEUED, _DOCKING, _SERVICE = (int(m) for m in Mode)
-_FIRST_MOVING = _TRAVEL
-_LAST_MOVING = _DOCKING
+NEVER = rules.NEVER
 
 
-@dataclass
 class Station:
-    """Bays serving one robot each (the first is the dock), with one line of waiting slots."""
+    """Bays serving one robot each (the first is the dock), with one line of waiting slots: a
+    view of station `k` in the task cycle's arrays."""
 
-    docks: np.ndarray  # (bays, 2) bay positions, the dock first
-    slots: np.ndarray  # (k, 2) waiting positions, in the order the line fills them
-    first_row: int  # how many of `slots` stand in the first row, along the wall from the dock
-    service_s: float
-    occupants: list[int] = field(default_factory=list)  # per bay, the robot in it or -1
-    line: list[int] = field(default_factory=list)
+    def __init__(self, arrays: TaskArrays, k: int) -> None:
+        self._arrays = arrays
+        self._k = k
 
-    def __post_init__(self) -> None:
-        if not self.occupants:
-            self.occupants = [-1] * len(self.docks)
+    @property
+    def docks(self) -> np.ndarray:
+        """(bays, 2) bay positions, the dock first."""
+        return self._arrays.docks[self._k, : self._arrays.n_bays[self._k]]
+
+    @property
+    def slots(self) -> np.ndarray:
+        """(k, 2) waiting positions, in the order the line fills them."""
+        return self._arrays.slots[self._k, : self._arrays.n_slots[self._k]]
+
+    @property
+    def first_row(self) -> int:
+        """How many of `slots` stand in the first row, along the wall from the dock."""
+        return int(self._arrays.first_row[self._k])
+
+    @property
+    def service_s(self) -> float:
+        return float(self._arrays.service_s[self._k])
+
+    @property
+    def occupants(self) -> list[int]:
+        """Per bay, the robot in it or -1."""
+        return self._arrays.occupants[self._k, : self._arrays.n_bays[self._k]].tolist()
+
+    @property
+    def line(self) -> list[int]:
+        """The waiting robots, head first."""
+        return self._arrays.line[self._k, : self._arrays.line_len[self._k]].tolist()
 
     @property
     def dock(self) -> np.ndarray:
@@ -91,16 +109,17 @@ class Station:
     @property
     def occupant(self) -> int:
         """The robot in the first bay (the dock), or -1: a one-bay station's occupant."""
-        return self.occupants[0]
+        return int(self._arrays.occupants[self._k, 0])
 
     @property
     def busy(self) -> float:
         """The fraction of bays in use."""
-        return sum(o >= 0 for o in self.occupants) / len(self.occupants)
+        occupants = self.occupants
+        return sum(o >= 0 for o in occupants) / len(occupants)
 
     def free_bay(self) -> int:
         """The free bay nearest the dock, or -1."""
-        return next((b for b, o in enumerate(self.occupants) if o < 0), -1)
+        return int(rules.free_bay(self._arrays, self._k))
 
 
 @dataclass(frozen=True)
@@ -114,49 +133,72 @@ class Completion:
 
 
 class TaskCycle:
-    """Per-robot task state and the stations; advanced by the simulation at events only."""
+    """Per-robot task state and the stations, in arrays (`arrays`) that the compiled rules of
+    `tavc_env.engine.navigation` advance, inside the compiled tick or through the methods here."""
 
     def __init__(self, config: ArenaConfig) -> None:
         self.config = config
         n = config.n_robots
         # Station k is the source (k even) or sink (k odd) of circuit k // 2.
-        self.stations = []
-        for k in range(len(config.stations())):
-            rows = config.waiting_rows(k, max(n - 1, 1))
-            self.stations.append(
-                Station(
-                    docks=config.bays(k),
-                    slots=stack_rows(rows),
-                    first_row=len(rows[0]) if rows else 0,
-                    service_s=config.source_service_s if k % 2 == 0 else config.sink_service_s,
-                )
-            )
+        k_stations = len(config.stations())
+        rows = [config.waiting_rows(k, max(n - 1, 1)) for k in range(k_stations)]
+        slots = [stack_rows(r) for r in rows]
+        docks = [config.bays(k) for k in range(k_stations)]
+        most_slots = max(len(s) for s in slots)
+        most_bays = max(len(d) for d in docks)
+        padded_slots = np.zeros((k_stations, most_slots, 2))
+        padded_docks = np.zeros((k_stations, most_bays, 2))
+        for k in range(k_stations):
+            padded_slots[k, : len(slots[k])] = slots[k]
+            padded_docks[k, : len(docks[k])] = docks[k]
         self.values = np.array([c.value for c in config.circuits], dtype=float)
         speeds = np.array([r.speed for r in config.robots], dtype=float)
-        self.service_scale = (
-            config.service_reference_speed / speeds
-            if config.service_scales_with_speed
-            else np.ones(n)
+        self.arrays = TaskArrays(
+            phase=np.zeros(n, dtype=np.int64),
+            mode=np.zeros(n, dtype=np.int64),
+            circuit=np.zeros(n, dtype=np.int64),
+            station=np.full(n, -1, dtype=np.int64),
+            bay=np.full(n, -1, dtype=np.int64),
+            decision_time=np.zeros(n),
+            service_until=np.full(n, math.inf),
+            trigger=np.full(n, NEVER),
+            target=np.zeros((n, 2)),
+            completed=np.zeros(n, dtype=np.int64),
+            moving=np.zeros(n, dtype=np.bool_),
+            service_scale=(
+                config.service_reference_speed / speeds
+                if config.service_scales_with_speed
+                else np.ones(n)
+            ),
+            docks=padded_docks,
+            n_bays=np.array([len(d) for d in docks], dtype=np.int64),
+            slots=padded_slots,
+            n_slots=np.array([len(s) for s in slots], dtype=np.int64),
+            first_row=np.array([len(r[0]) if r else 0 for r in rows], dtype=np.int64),
+            service_s=np.array(
+                [
+                    config.sink_service_s if k % 2 else config.source_service_s
+                    for k in range(k_stations)
+                ],
+                dtype=float,
+            ),
+            occupants=np.full((k_stations, most_bays), -1, dtype=np.int64),
+            line=np.full((k_stations, max(n, 1)), -1, dtype=np.int64),
+            line_len=np.zeros(k_stations, dtype=np.int64),
+            join_radius_m=float(config.join_radius_m),
+            dock_tolerance_m=float(config.dock_tolerance_m),
         )
-        self.phase = np.zeros(n, dtype=np.int64)
-        self.mode = np.zeros(n, dtype=np.int64)
-        self.circuit = np.zeros(n, dtype=np.int64)
-        self.station = np.full(n, -1, dtype=np.int64)
-        self.bay = np.full(n, -1, dtype=np.int64)  # the bay a docking or served robot holds
-        self.decision_time = np.zeros(n)
-        self.service_until = np.full(n, math.inf)
-        self.trigger = np.full(n, NEVER)  # distance to target that fires an event; NEVER: none
-        self.target = np.zeros((n, 2))
-        self.completed = np.zeros(n, dtype=np.int64)
-        self.moving = np.zeros(n, dtype=np.bool_)  # robots driving toward a target (kept in sync)
+        self.stations = [Station(self.arrays, k) for k in range(k_stations)]
+        a = self.arrays
+        self.phase, self.mode, self.circuit = a.phase, a.mode, a.circuit
+        self.station, self.bay = a.station, a.bay
+        self.decision_time, self.service_until = a.decision_time, a.service_until
+        self.trigger, self.target, self.moving = a.trigger, a.target, a.moving
+        self.completed, self.service_scale = a.completed, a.service_scale
 
     # -- queries -------------------------------------------------------------------------------
-    def _set_mode(self, i: int, mode: int) -> None:
-        self.mode[i] = mode
-        self.moving[i] = _FIRST_MOVING <= mode <= _LAST_MOVING
-
     def needs_decision(self) -> np.ndarray:
-        return self.phase == _DECIDING
+        return self.phase == rules.DECIDING
 
     def source_of(self, circuit: int) -> int:
         return 2 * circuit
@@ -164,11 +206,20 @@ class TaskCycle:
     def sink_of(self, circuit: int) -> int:
         return 2 * circuit + 1
 
-    # -- transitions ---------------------------------------------------------------------------
+    def completion(self, i: int, now: float) -> Completion:
+        """Robot i's task, completed at `now`."""
+        return Completion(
+            robot=i,
+            circuit=int(self.circuit[i]),
+            task_time_s=now - self.decision_time[i],
+            time_s=now,
+        )
+
+    # -- transitions (the compiled rules) --------------------------------------------------------
     def start(self, i: int, circuit: int) -> None:
         """Robot i begins, standing at circuit's sink, waiting for its first decision."""
-        self.phase[i] = _DECIDING
-        self._set_mode(i, _IDLE)
+        self.phase[i] = rules.DECIDING
+        rules.set_mode(self.arrays, i, rules.IDLE)
         self.circuit[i] = circuit
         self.station[i] = -1
         self.bay[i] = -1
@@ -177,103 +228,21 @@ class TaskCycle:
 
     def choose(self, i: int, circuit: int, now: float) -> None:
         """Robot i (deciding) starts a task on `circuit`."""
-        self.phase[i] = _TO_SOURCE
-        self.circuit[i] = circuit
-        self.decision_time[i] = now
-        self._travel_to(i, self.source_of(circuit))
-
-    def _travel_to(self, i: int, station: int) -> None:
-        self.station[i] = station
-        self._set_mode(i, _TRAVEL)
-        self._aim(i, self.stations[station])
-
-    def _aim(self, i: int, st: Station) -> None:
-        """Robot i, travelling to `st`, drives at its dock, or at the end of a line that has
-        spilled beyond its first row."""
-        tail = len(st.line)
-        self.target[i] = st.slots[tail] if st.first_row <= tail < len(st.slots) else st.dock
-        self.trigger[i] = self.config.join_radius_m
-
-    def _line_changed(self, station: int) -> None:
-        """Re-aim the robots travelling to `station` and move its waiting robots up."""
-        st = self.stations[station]
-        for k, j in enumerate(st.line):
-            self.target[j] = st.slots[k]
-        for traveller in np.flatnonzero((self.mode == _TRAVEL) & (self.station == station)):
-            self._aim(int(traveller), st)
+        rules.choose(self.arrays, i, circuit, now)
 
     def arrive(self, i: int, now: float) -> None:
         """Robot i reached the distance that fires its current trigger."""
-        if self.mode[i] == _TRAVEL:
-            self._join(i)
-        elif self.mode[i] == _DOCKING:
-            st = self.stations[self.station[i]]
-            self._set_mode(i, _SERVICE)
-            self.trigger[i] = NEVER
-            self.service_until[i] = now + st.service_s * self.service_scale[i]
-
-    def _join(self, i: int) -> None:
-        st = self.stations[self.station[i]]
-        bay = st.free_bay()
-        if bay >= 0 and not st.line:
-            self._dock(i, st, bay)
-        else:
-            st.line.append(i)
-            self._set_mode(i, _QUEUED)
-            self.trigger[i] = NEVER
-            self._line_changed(int(self.station[i]))
-
-    def _dock(self, i: int, st: Station, bay: int) -> None:
-        st.occupants[bay] = i
-        self.bay[i] = bay
-        self._set_mode(i, _DOCKING)
-        self.target[i] = st.docks[bay]
-        self.trigger[i] = self.config.dock_tolerance_m
-
-    def _release(self, i: int) -> None:
-        """Robot i leaves its bay; the head of the line, if any, takes it."""
-        station, bay = int(self.station[i]), int(self.bay[i])
-        st = self.stations[station]
-        st.occupants[bay] = -1
-        self.bay[i] = -1
-        if st.line:
-            head = st.line.pop(0)
-            self._dock(head, st, bay)
-            self._line_changed(station)
+        rules.arrive(self.arrays, i, now)
 
     def finish_service(self, i: int, now: float) -> Completion | None:
         """Robot i's loading or unloading ended; returns the completed task after unloading."""
-        self.service_until[i] = math.inf
-        self._release(i)
-        c = int(self.circuit[i])
-        if self.phase[i] == _TO_SOURCE:
-            self.phase[i] = _TO_SINK
-            self._travel_to(i, self.sink_of(c))
-            return None
-        self.phase[i] = _DECIDING
-        self._set_mode(i, _IDLE)
-        self.station[i] = -1
-        self.trigger[i] = NEVER
-        self.completed[i] += 1
-        return Completion(robot=i, circuit=c, task_time_s=now - self.decision_time[i], time_s=now)
+        return self.completion(i, now) if rules.finish_service(self.arrays, i) else None
 
     def break_down(self, i: int) -> None:
         """Robot i stops serving: it leaves any line or dock; its task is abandoned."""
-        s = self.station[i]
-        if s >= 0:
-            st = self.stations[s]
-            if self.bay[i] >= 0:
-                self._release(i)
-            elif i in st.line:
-                st.line.remove(i)
-                self._line_changed(int(s))
-        self.phase[i] = _BROKEN
-        self._set_mode(i, _IDLE)
-        self.station[i] = -1
-        self.trigger[i] = NEVER
-        self.service_until[i] = math.inf
+        rules.break_down(self.arrays, i)
 
     def repair(self, i: int) -> None:
         """Robot i is back: it must decide where to go next (its last circuit stays its state)."""
-        self.phase[i] = _DECIDING
-        self._set_mode(i, _IDLE)
+        self.phase[i] = rules.DECIDING
+        rules.set_mode(self.arrays, i, rules.IDLE)

@@ -5,26 +5,22 @@
   reorders pymunk's bodies).
 * `navigation.steer_all_grid` finds each robot's neighbours on a grid: the commands must be
   exactly those of `steer_all`, which looks at every pair.
-* `navigation.after_step` fuses the arrival and stuck checks: it must give the same robots, and
-  leave the same anchors, as `arrivals` then `stuck`.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
 
 import tavc_env
 from tavc_env.engine.navigation import (
-    STUCK_PATIENCE_S,
-    after_step,
-    arrivals,
     grid_scratch,
     neighbour_cell_m,
     steer_all,
     steer_all_grid,
     steer_grid_into,
-    stuck,
 )
 from tavc_env.engine.simulation import Simulation
 from tavc_env.engine.world import World
@@ -59,52 +55,6 @@ def test_batched_positions_and_velocities_match_per_body_access(preset: str) -> 
         assert np.array_equal(world.positions(), per_body_positions(world))
     assert np.all(per_body_positions(world) > lo - 1.0)
     assert np.all(per_body_positions(world) < hi + 1.0)
-
-
-def test_fused_after_step_equals_arrivals_then_stuck() -> None:
-    rng = np.random.default_rng(11)
-    for trial in range(200):
-        n = int(rng.integers(1, 12))
-        pos = rng.uniform(0, 5, size=(n, 2))
-        target = pos + rng.normal(scale=rng.choice([0.05, 0.5, 2.0]), size=(n, 2))
-        trigger = np.where(rng.random(n) < 0.3, -1.0, rng.uniform(0.05, 1.5, size=n))
-        moving = rng.random(n) < 0.7
-        present = rng.random(n) < 0.9
-        anchor = pos + rng.normal(scale=0.1, size=(n, 2))
-        anchor_time = rng.uniform(0, 100, size=n)
-        now = 100.0
-        stuck_too = bool(rng.random() < 0.8)
-
-        a_anchor, a_time = anchor.copy(), anchor_time.copy()
-        arrived, stalled = np.zeros(n, np.int64), np.zeros(n, np.int64)
-        k, m = after_step(
-            pos,
-            target,
-            trigger,
-            moving,
-            present,
-            a_anchor,
-            a_time,
-            now,
-            STUCK_PATIENCE_S,
-            stuck_too,
-            arrived,
-            stalled,
-        )
-
-        b_anchor, b_time = anchor.copy(), anchor_time.copy()
-        hits = np.zeros(n, np.int64)
-        k_ref = arrivals(pos, target, trigger, hits)
-        assert k == k_ref and list(arrived[:k]) == list(hits[:k_ref]), trial
-        if k_ref == 0 and stuck_too:
-            out = np.zeros(n, np.int64)
-            m_ref = stuck(
-                pos, target, moving & present, b_anchor, b_time, now, STUCK_PATIENCE_S, out
-            )
-            assert m == m_ref and list(stalled[:m]) == list(out[:m_ref]), trial
-        else:
-            assert m == -1, trial  # the caller runs the stuck check after handling arrivals
-        assert np.array_equal(a_anchor, b_anchor) and np.array_equal(a_time, b_time), trial
 
 
 def test_grid_neighbour_search_gives_exactly_the_all_pairs_commands() -> None:
@@ -239,3 +189,29 @@ def test_the_grid_kept_from_tick_to_tick_gives_exactly_the_all_pairs_commands() 
         steer_all(*common, a_v, a_h)
         steer_grid_into(*common, b_v, b_h, cell, *scratch)
         assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), tick
+
+
+@pytest.mark.parametrize(("speed_noise", "per_task"), [(0.0, 1), (0.1, 2)])
+def test_the_compiled_tick_runs_the_task_rules_itself(
+    speed_noise: float, per_task: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Arrivals, dockings and service ends run inside the compiled tick: it hands the tick back to
+    Python at a completion (a decision epoch) and, with speed noise, at the leg to the sink (its
+    speed is drawn from the generator), not at every task event."""
+    handbacks = []
+    end_tick = Simulation._end_tick
+    monkeypatch.setattr(
+        Simulation, "_end_tick", lambda sim, *args: handbacks.append(1) or end_tick(sim, *args)
+    )
+    config = tavc_env.make_config("dahl2004", speed_noise=speed_noise)
+    sim = Simulation(config, jam_window_s=math.inf)
+    sim.reset(np.random.default_rng(2))
+    choices = np.random.default_rng(3)
+    while sim.time_s < 3600.0:
+        for i in np.flatnonzero(sim.tasks.needs_decision()):
+            sim.choose(int(i), int(choices.integers(config.n_circuits)))
+        sim.advance(3600.0 - sim.time_s)
+    tasks = int(sim.tasks.completed.sum())
+    assert tasks > 100 and sim.escapes == 0
+    # at most: events of one tick come back together; the last call may end on a leg to the sink
+    assert len(handbacks) <= tasks * per_task + 1
