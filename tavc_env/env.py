@@ -129,8 +129,9 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self._action_spaces: dict[str, spaces.Space[Any]] = {
             a: spaces.Discrete(m) for a in self.possible_agents
         }
-        self._busy_mask = [frozen(np.eye(m, dtype=np.int8)[c]) for c in range(m)]
-        self._free_mask = frozen(np.ones(m, np.int8))
+        # row c: only circuit c (a robot busy on c); row m: every circuit (a deciding robot)
+        self._mask_rows = frozen(np.vstack([np.eye(m, dtype=np.int8), np.ones(m, np.int8)]))
+        self._mask_views = list(self._mask_rows)
         self.state_space = self._state_space()
         self.sim: E = self._new_engine()
         self._rng: np.random.Generator | None = None
@@ -196,7 +197,23 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
     ]:
         if not self.agents:
             raise ValueError("step() called on a finished episode; call reset() first")
-        choices = self._validate(actions)
+        rewards, truncated = self.advance_choices(self._validate(actions))
+        deciding = self.sim.tasks.needs_decision()  # once for the observations, masks and infos
+        observations = self._observations(deciding)
+        infos = self._infos(truncated, deciding)
+        terminations = dict.fromkeys(self.agents, False)
+        truncations = dict.fromkeys(self.agents, truncated)
+        reward_of = dict(zip(self.agents, rewards.tolist()))
+        if truncated:
+            self.agents = []
+        return observations, reward_of, terminations, truncations, infos
+
+    def advance_choices(self, choices: list[tuple[int, int]]) -> tuple[np.ndarray, bool]:
+        """The arena part of `step`, for adapters that build arrays themselves (`tavc_env.adapters.
+        batched`): every `(robot, circuit)` choice of the deciding robots applied (in robot order,
+        unchecked: the caller checked them), the arena advanced to the step's end, the values
+        plan applied. Returns every robot's reward `(n,)` and whether the episode is truncated;
+        the step's observations and infos are then `observation_arrays` and `info_arrays`."""
         history = self._recorder()
         for i, circuit in choices:
             self.sim.choose(i, circuit)
@@ -220,14 +237,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         truncated = (
             self.num_cycles >= opts.max_cycles or self.sim.time_s >= opts.max_sim_time_s - 1e-9
         )
-        deciding = self.sim.tasks.needs_decision()  # once for the observations, masks and infos
-        observations = self._observations(deciding)
-        infos = self._infos(truncated, deciding)
-        terminations = dict.fromkeys(self.agents, False)
-        truncations = dict.fromkeys(self.agents, truncated)
-        if truncated:
-            self.agents = []
-        return observations, rewards, terminations, truncations, infos
+        return rewards, truncated
 
     def _plan_values(self, rng: np.random.Generator) -> list[tuple[float, tuple[float, ...]]]:
         """The episode's planned priority changes, drawn at reset before the arena: `(at_s,
@@ -452,23 +462,62 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         )
         return int(a)  # type: ignore[call-overload]
 
-    def _rewards(self, out: Advance) -> dict[str, float]:
-        rewards = dict.fromkeys(self.agents, 0.0)
+    def _rewards(self, out: Advance) -> np.ndarray:
+        rewards = np.zeros(self.config.n_robots)
         self._last_task_time[:] = math.nan
         self._last_task_value[:] = 0.0
         unit = TIME_UNITS[self.options.reward_time_unit]
         per_value = self.options.reward == "value"
         values = self.sim.tasks.values
         for c in out.completions:
-            agent = self.possible_agents[c.robot]
             w = values[c.circuit]
-            rewards[agent] += float(w if per_value else w / (c.task_time_s * unit))
+            rewards[c.robot] += float(w if per_value else w / (c.task_time_s * unit))
             self.delivered_value += float(values[c.circuit] / values.max())
             self.episode_value += float(w)
             self._last_task_value[c.robot] = float(w)
             self._last_task_time[c.robot] = float(c.task_time_s)
             self._last_task_by_circuit[c.robot, c.circuit] = float(c.task_time_s)
         return rewards
+
+    def observation_arrays(self) -> np.ndarray:
+        """Every robot's observation vector now, `(n, k)` float32 (the rows of `step`'s)."""
+        return self._builder.array(self.sim, self._last_task_by_circuit)
+
+    def info_arrays(
+        self, truncated: bool, deciding: np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
+        """Every info field now as an array over the robots, `(n,)` (the masks: `mask_array`):
+        the one computation behind `step`'s per-agent infos and the batched arrays. `deciding`:
+        `needs_decision()` if the caller has it."""
+        tasks = self.sim.tasks
+        now = float(self.sim.time_s)
+        n = self.config.n_robots
+        deciding = np.asarray(tasks.needs_decision() if deciding is None else deciding)
+        phase = np.asarray(tasks.phase, np.int64)
+        circuit = np.asarray(tasks.circuit, np.int64)
+        done = ~np.isnan(self._last_task_time)
+        return {
+            "action_required": deciding & (not truncated),
+            "circuit": circuit,
+            "phase": phase,
+            "broken": phase == _BROKEN,
+            "task_completed": done,
+            "task_time_s": np.where(done, self._last_task_time, 0.0),
+            "task_value": np.where(done, self._last_task_value, 0.0),
+            "elapsed_s": now - np.asarray(tasks.decision_time, float),
+            "sim_time_s": np.full(n, now),
+            "completed_tasks": np.asarray(tasks.completed, np.int64),
+            "jammed": np.full(n, bool(self.sim.jammed)),
+        }
+
+    def mask_array(self, deciding: np.ndarray | None = None) -> np.ndarray:
+        """Every robot's action mask now, `(n, m)` int8: every circuit for a robot that must
+        decide, only the circuit it serves for one that need not (its action is ignored)."""
+        tasks = self.sim.tasks
+        deciding = tasks.needs_decision() if deciding is None else deciding
+        free = self.config.n_circuits
+        mask: np.ndarray = self._mask_rows[np.where(deciding, free, tasks.circuit)]
+        return mask
 
     def _observations(self, deciding: np.ndarray | None = None) -> dict[str, Any]:
         """Every agent's observation; `deciding`: `needs_decision()` if the caller has it."""
@@ -483,17 +532,20 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         }
 
     def _masks(self, deciding: np.ndarray | None = None) -> list[np.ndarray]:
+        """The rows of `mask_array`, as shared read-only arrays (none built per step)."""
         tasks = self.sim.tasks
         if deciding is None:
             deciding = tasks.needs_decision()
-        busy, free = self._busy_mask, self._free_mask
-        return [free if d else busy[c] for d, c in zip(_plain(deciding), _plain(tasks.circuit))]
+        rows, free = self._mask_views, self.config.n_circuits
+        return [rows[free if d else c] for d, c in zip(_plain(deciding), _plain(tasks.circuit))]
 
     def _infos(
         self, truncated: bool, deciding: np.ndarray | None = None
     ) -> dict[str, dict[str, Any]]:
-        """Every agent's info; `deciding`: `needs_decision()` if the caller has it. Built from
-        each array read once as Python numbers (not a numpy scalar per agent and key)."""
+        """Every agent's info; `deciding`: `needs_decision()` if the caller has it. The fields of
+        `info_arrays`, from each array read once as Python numbers (a dict per agent made from
+        `info_arrays` costs 3x as much per step; tests/tavc_env/adapters/test_batched.py checks
+        that the two agree)."""
         tasks = self.sim.tasks
         now = float(self.sim.time_s)
         if deciding is None:

@@ -44,13 +44,13 @@ def trajectory(batch: BatchedArenaEnv, seed: int, steps: int) -> list[np.ndarray
 
 
 def failing_env(**kwargs: Any) -> TavcArenaEnv:
-    """An arena whose `step` raises (a module-level function: spawn sends it by name)."""
+    """An arena whose step raises (a module-level function: spawn sends it by name)."""
     env = tavc_env.parallel_env(**kwargs)
 
-    def broken_step(actions: Any) -> Any:
+    def broken_step(choices: Any) -> Any:
         raise ZeroDivisionError("a fault planted in the worker")
 
-    env.step = broken_step  # type: ignore[method-assign]
+    env.advance_choices = broken_step  # type: ignore[method-assign]
     return env
 
 
@@ -58,23 +58,23 @@ FROZEN_SEED = int(np.random.SeedSequence(0).spawn(2)[1].generate_state(1)[0])  #
 
 
 def freezing_env(**kwargs: Any) -> TavcArenaEnv:
-    """An arena whose `step` never returns once it was reset with `FROZEN_SEED` (arena 1 of a
+    """An arena whose step never returns once it was reset with `FROZEN_SEED` (arena 1 of a
     batch reset with seed 0): a worker frozen in a step."""
     env = tavc_env.parallel_env(**kwargs)
-    reset, step = env.reset, env.step
+    reset, step = env.reset, env.advance_choices
     seeds: list[Any] = []
 
     def recording_reset(seed: Any = None, options: Any = None) -> Any:
         seeds.append(seed)
         return reset(seed=seed, options=options)
 
-    def frozen_step(actions: Any) -> Any:
+    def frozen_step(choices: Any) -> Any:
         if seeds and seeds[0] == FROZEN_SEED:
             time.sleep(3600)
-        return step(actions)
+        return step(choices)
 
     env.reset = recording_reset  # type: ignore[method-assign]
-    env.step = frozen_step  # type: ignore[method-assign]
+    env.advance_choices = frozen_step  # type: ignore[method-assign]
     return env
 
 
