@@ -52,7 +52,7 @@ import math
 import reprlib
 import weakref
 from array import array
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, Generic, TypeVar
 
 import numpy as np
@@ -213,7 +213,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         batched`): every `(robot, circuit)` choice of the deciding robots applied (in robot order,
         unchecked: the caller checked them), the arena advanced to the step's end, the values
         plan applied. Returns every robot's reward `(n,)` and whether the episode is truncated;
-        the step's observations and infos are then `observation_arrays` and `info_arrays`."""
+        the step's observations, masks and infos are then `arena_arrays`."""
         history = self._recorder()
         for i, circuit in choices:
             self.sim.choose(i, circuit)
@@ -469,55 +469,16 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         unit = TIME_UNITS[self.options.reward_time_unit]
         per_value = self.options.reward == "value"
         values = self.sim.tasks.values
+        top = values.max() if out.completions else 1.0  # (a reduction, once per step)
         for c in out.completions:
             w = values[c.circuit]
             rewards[c.robot] += float(w if per_value else w / (c.task_time_s * unit))
-            self.delivered_value += float(values[c.circuit] / values.max())
+            self.delivered_value += float(w / top)
             self.episode_value += float(w)
             self._last_task_value[c.robot] = float(w)
             self._last_task_time[c.robot] = float(c.task_time_s)
             self._last_task_by_circuit[c.robot, c.circuit] = float(c.task_time_s)
         return rewards
-
-    def observation_arrays(self) -> np.ndarray:
-        """Every robot's observation vector now, `(n, k)` float32 (the rows of `step`'s)."""
-        return self._builder.array(self.sim, self._last_task_by_circuit)
-
-    def info_arrays(
-        self, truncated: bool, deciding: np.ndarray | None = None
-    ) -> dict[str, np.ndarray]:
-        """Every info field now as an array over the robots, `(n,)` (the masks: `mask_array`):
-        the one computation behind `step`'s per-agent infos and the batched arrays. `deciding`:
-        `needs_decision()` if the caller has it."""
-        tasks = self.sim.tasks
-        now = float(self.sim.time_s)
-        n = self.config.n_robots
-        deciding = np.asarray(tasks.needs_decision() if deciding is None else deciding)
-        phase = np.asarray(tasks.phase, np.int64)
-        circuit = np.asarray(tasks.circuit, np.int64)
-        done = ~np.isnan(self._last_task_time)
-        return {
-            "action_required": deciding & (not truncated),
-            "circuit": circuit,
-            "phase": phase,
-            "broken": phase == _BROKEN,
-            "task_completed": done,
-            "task_time_s": np.where(done, self._last_task_time, 0.0),
-            "task_value": np.where(done, self._last_task_value, 0.0),
-            "elapsed_s": now - np.asarray(tasks.decision_time, float),
-            "sim_time_s": np.full(n, now),
-            "completed_tasks": np.asarray(tasks.completed, np.int64),
-            "jammed": np.full(n, bool(self.sim.jammed)),
-        }
-
-    def mask_array(self, deciding: np.ndarray | None = None) -> np.ndarray:
-        """Every robot's action mask now, `(n, m)` int8: every circuit for a robot that must
-        decide, only the circuit it serves for one that need not (its action is ignored)."""
-        tasks = self.sim.tasks
-        deciding = tasks.needs_decision() if deciding is None else deciding
-        free = self.config.n_circuits
-        mask: np.ndarray = self._mask_rows[np.where(deciding, free, tasks.circuit)]
-        return mask
 
     def _observations(self, deciding: np.ndarray | None = None) -> dict[str, Any]:
         """Every agent's observation; `deciding`: `needs_decision()` if the caller has it."""
@@ -532,7 +493,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         }
 
     def _masks(self, deciding: np.ndarray | None = None) -> list[np.ndarray]:
-        """The rows of `mask_array`, as shared read-only arrays (none built per step)."""
+        """Every robot's action mask (`arena_arrays`), as shared read-only rows (none built per step)."""
         tasks = self.sim.tasks
         if deciding is None:
             deciding = tasks.needs_decision()
@@ -543,8 +504,8 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self, truncated: bool, deciding: np.ndarray | None = None
     ) -> dict[str, dict[str, Any]]:
         """Every agent's info; `deciding`: `needs_decision()` if the caller has it. The fields of
-        `info_arrays`, from each array read once as Python numbers (a dict per agent made from
-        `info_arrays` costs 3x as much per step; tests/tavc_env/adapters/test_batched.py checks
+        `arena_arrays`, from each array read once as Python numbers (a dict per agent made from
+        `arena_arrays` costs 3x as much per step; tests/tavc_env/adapters/test_batched.py checks
         that the two agree)."""
         tasks = self.sim.tasks
         now = float(self.sim.time_s)
@@ -653,6 +614,42 @@ class TavcArenaEnv(ArenaEnv[Simulation]):
     def snapshot(self) -> ArenaSnapshot:
         """The arena now: positions, headings, targets, circuits, phases (copies)."""
         return self.sim.snapshot()
+
+
+def arena_arrays(envs: Sequence[ArenaEnv[Any]], truncated: Sequence[bool]) -> dict[str, np.ndarray]:
+    """The observations, action masks and every info field of arenas `envs` now (envs of one
+    kind, config and options), stacked over the arenas `(K, n, ...)`, each built once from the
+    engines' arrays: what a batched view returns, the numbers of the dicts the plain env's
+    `step` returns (`truncated[k]`: arena k's episode was truncated). The mask gives a robot
+    that must decide every circuit, one that need not only the circuit it serves."""
+    first = envs[0]
+    n, m = first.config.n_robots, first.config.n_circuits
+    sims = [env.sim for env in envs]
+    tasks = [sim.tasks for sim in sims]
+    deciding = np.array([t.needs_decision() for t in tasks], bool)
+    circuit = np.array([t.circuit for t in tasks], np.int64)
+    phase = np.array([t.phase for t in tasks], np.int64)
+    task_time = np.array([env._last_task_time for env in envs])
+    done = ~np.isnan(task_time)
+    now = np.array([sim.time_s for sim in sims], float)[:, None]
+    jammed = np.array([bool(sim.jammed) for sim in sims])[:, None]
+    return {
+        "observations": first._builder.stacked(
+            sims, [env._last_task_by_circuit for env in envs], circuit
+        ),
+        "action_mask": first._mask_rows[np.where(deciding, m, circuit)],
+        "action_required": deciding & ~np.array(truncated, bool)[:, None],
+        "circuit": circuit,
+        "phase": phase,
+        "broken": phase == _BROKEN,
+        "task_completed": done,
+        "task_time_s": np.where(done, task_time, 0.0),
+        "task_value": np.where(done, np.array([env._last_task_value for env in envs]), 0.0),
+        "elapsed_s": now - np.array([t.decision_time for t in tasks], float),
+        "sim_time_s": np.repeat(now, n, axis=1),
+        "completed_tasks": np.array([t.completed for t in tasks], np.int64),
+        "jammed": np.repeat(jammed, n, axis=1),
+    }
 
 
 def _plain(values: Any) -> list[Any]:

@@ -104,11 +104,15 @@ class ObservationBuilder:
             return [row[c] for c in circuits]
         return [rows[c] for rows, c in zip(self._rows, circuits)]
 
-    def array(self, sim: Any, last_task_s: np.ndarray) -> np.ndarray:
-        """Every robot's observation now as one array `(n, k)` float32 (the rows of `build`)."""
+    def stacked(
+        self, sims: list[Any], last_task_s: list[np.ndarray], circuit: np.ndarray
+    ) -> np.ndarray:
+        """The observations of several arenas now, `(K, n, k)` float32 (the rows of `build`):
+        arena k's engine `sims[k]`, its last task times `last_task_s[k]` and circuits
+        `circuit[k]`."""
         if self.mode == "rich":
-            return self._rich(sim, last_task_s)
-        rows: np.ndarray = self._table[self._row_of, np.asarray(sim.tasks.circuit, np.int64)]
+            return np.array([self._rich(sim, last) for sim, last in zip(sims, last_task_s)])
+        rows: np.ndarray = self._table[self._row_of, circuit]
         return rows
 
     def _rich(self, sim: Any, last_task_s: np.ndarray) -> np.ndarray:

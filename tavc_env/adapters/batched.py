@@ -62,7 +62,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
 from tavc_env.arena import make_env as arena_env
-from tavc_env.env import ArenaEnv
+from tavc_env.env import ArenaEnv, arena_arrays
 from tavc_env.validation import is_integer, is_number, require
 
 Arrays = dict[str, Any]  # field -> stacked array (and "final_info" -> such a dict)
@@ -108,22 +108,12 @@ class BatchedStep(NamedTuple):
         return mask
 
 
-def arena_arrays(env: ArenaEnv[Any], truncated: bool = False) -> Arrays:
-    """One arena's observations, masks and infos now, robot by robot, as arrays (the env's own
-    `observation_arrays`, `mask_array` and `info_arrays`, as its `step` builds its dicts)."""
-    deciding = env.sim.tasks.needs_decision()
-    return {
-        "observations": env.observation_arrays(),
-        "action_mask": env.mask_array(deciding),
-        **env.info_arrays(truncated, deciding),
-    }
-
-
 class ArenaGroup:
-    """Some arenas stepped in turn, every result built from each arena's arrays
-    (`ArenaEnv.advance_choices`, `arena_arrays`) and stacked, with no per-agent dicts: the work
-    of one worker (or of the in-process mode). Knows nothing of processes. Only the actions of
-    robots that must decide are read, unchecked (`BatchedArenaEnv.step` checks them)."""
+    """Some arenas stepped in turn (`ArenaEnv.advance_choices`), every result built for all of
+    them at once from their engines' arrays (`tavc_env.env.arena_arrays`), no per-agent dicts:
+    the work of one worker (or of the in-process mode). Knows nothing of processes. Only the
+    actions of robots that must decide are read, unchecked (`BatchedArenaEnv.step` checks
+    them)."""
 
     def __init__(self, make_env: EnvFactory, env_kwargs: Mapping[str, Any], count: int) -> None:
         self.envs = [make_env(**env_kwargs) for _ in range(count)]
@@ -133,7 +123,7 @@ class ArenaGroup:
     def reset(self, seeds: Sequence[int | None]) -> Arrays:
         for env, seed in zip(self.envs, seeds):
             env.reset(seed=seed)
-        out = self._stack(self.envs, [False] * len(self.envs))
+        out = arena_arrays(self.envs, [False] * len(self.envs))
         self._deciding = out["action_required"].copy()  # the caller may write to its own
         return out
 
@@ -145,13 +135,13 @@ class ArenaGroup:
             row = actions[e]
             choices = [(i, int(row[i])) for i in deciding.nonzero()[0].tolist()]
             rewards[e], truncated[e] = env.advance_choices(choices)
-        out = self._stack(self.envs, truncated.tolist())
+        out: Arrays = arena_arrays(self.envs, truncated.tolist())
         ended = truncated.nonzero()[0].tolist()
         if ended:  # same-step autoreset; only the finished arenas' rows travel (most steps none)
             out["final"] = {key: value[ended] for key, value in out.items()}
             for e in ended:
                 self.envs[e].reset()  # its generator continues
-            fresh = self._stack([self.envs[e] for e in ended], [False] * len(ended))
+            fresh = arena_arrays([self.envs[e] for e in ended], [False] * len(ended))
             for key, value in fresh.items():
                 out[key][ended] = value
         self._deciding = out["action_required"].copy()  # the caller may write to its own
@@ -162,10 +152,6 @@ class ArenaGroup:
     def close(self) -> None:
         for env in self.envs:
             env.close()
-
-    def _stack(self, envs: Sequence[ArenaEnv[Any]], truncated: Sequence[bool]) -> Arrays:
-        rows = [arena_arrays(env, t) for env, t in zip(envs, truncated)]
-        return {key: np.stack([row[key] for row in rows]) for key in rows[0]}
 
 
 _STEP_ONLY = ("rewards", "terminated", "truncated")
@@ -626,8 +612,8 @@ def _layout(probe: ArenaEnv[Any]) -> Layout:
     widest first so that every field stays aligned in the shared block."""
     n = len(probe.possible_agents)
     probe.reset(seed=0)
-    row = arena_arrays(probe)
-    fields = [(key, value.dtype.str, value.shape) for key, value in row.items()]
+    row = arena_arrays([probe], [False])
+    fields = [(key, value.dtype.str, value.shape[1:]) for key, value in row.items()]
     fields += [("rewards", "<f8", (n,)), ("terminated", "|b1", ()), ("truncated", "|b1", ())]
     fields += [("_final", "|b1", ())]
     return sorted(fields, key=lambda field: -np.dtype(field[1]).itemsize)
