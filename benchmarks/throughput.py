@@ -64,12 +64,10 @@ from concurrent.futures import ProcessPoolExecutor
 from contextlib import ExitStack
 from dataclasses import dataclass
 from typing import Any, ClassVar
-from unittest import mock
 
 import numpy as np
 
 import tavc_env
-import tavc_env.engine.simulation as engine_simulation
 from arena_runs import TEAM_SIZES as SIZES
 from arena_runs import random_choice_run
 from arena_runs import team_config as config_for
@@ -79,8 +77,12 @@ from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.study import Outcome, StudySettings, run_study
 from tavc_env.adapters.batched import BatchedArenaEnv
 from tavc_env.config import ArenaConfig
-from tavc_env.engine.navigation import run_ticks as loop
-from tavc_env.measurement import compiled_floor, physics_floor, physics_replay
+from tavc_env.measurement import (
+    compiled_floor,
+    compiled_loop_timer,
+    physics_floor,
+    physics_replay,
+)
 
 SIM_HOURS = {6: 5.0, 24: 1.0, 96: 0.25, 384: 0.05}  # per repeat, about a CPU second or less each
 # Goals (issue 24): at 6 robots the public parallel API reaches 95 % of the bare loop's speed
@@ -225,16 +227,7 @@ def compiled_loop_cpu(config: ArenaConfig, arenas: int, steps: int, seed: int) -
     """CPU seconds spent inside the compiled tick loop (`run_ticks`) in `batched_run`'s run of
     the same arguments: the loop's own cost, whatever the adapter around it costs (each call
     timed; the run is the same trajectory, so the decisions are the same)."""
-    spent = [0.0]
-
-    def timed(*args: Any) -> Any:
-        start = time.process_time()
-        try:
-            return loop(*args)
-        finally:
-            spent[0] += time.process_time() - start
-
-    with mock.patch.object(engine_simulation, "run_ticks", timed):
+    with compiled_loop_timer() as spent:
         batched_run(config, arenas, steps, seed)
     return spent[0]
 
