@@ -2,14 +2,22 @@
 
 `BatchedArenaEnv(n_envs, workers=w, env_kwargs={...})` holds `n_envs` copies of the arena (each
 built by `make_env(**env_kwargs)`, by default `tavc_env.arena.make_env`: a scenario or a preset),
-split into `w` contiguous groups, one per worker process (`workers=0`: all in this process, for
-debugging and for one arena). A step sends each worker its groups' actions and returns, with `N = n_envs` and `n` robots:
+split into `w` contiguous groups, one per worker process (`workers=0`: all in this process, the
+cheapest per decision; workers only to use more cores). A step sends each worker its groups'
+actions and returns, with `N = n_envs` and `n` robots:
 
 - `observations`: `(N, n, k)` float32, the env's observation vector of every robot;
 - `rewards`: `(N, n)` float64; `terminated`, `truncated`: `(N,)` bool (a whole arena ends at once);
 - `infos`: a dict of arrays: every info field of the env, `(N, n)` (`action_required` is who must
   decide next, `elapsed_s`, `task_time_s`, `sim_time_s`, ...), and `action_mask` `(N, n, m)` int8.
   `BatchedStep.must_decide` and `.action_masks` name the two a loop needs.
+
+Two calls are the whole API: `reset(seed) -> (observations, infos)` and `step(actions) ->
+BatchedStep`. No per-agent dicts are built on the way: each arena steps through the env's own
+`ArenaEnv.advance_choices` (the arena part of its `step`), and a group's observations, masks and
+infos come from its engines' arrays at once (`tavc_env.env.arena_arrays`); arena `i` is the plain
+env reset with the `i`-th spawned seed (below), step for step. The infos are the numbers of the
+current env version (`tavc_arena_v1`) whatever `make_env` builds.
 
 This is the layout of CleanRL's loops and of TorchRL's batched multi-agent tensors. Actions are an
 integer array `(N, n)`; only entries of robots that must decide are read (others may hold anything,
