@@ -195,8 +195,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         dict[str, bool],
         dict[str, dict[str, Any]],
     ]:
-        if not self.agents:
-            raise ValueError("step() called on a finished episode; call reset() first")
+        self._require_running()
         rewards, truncated = self.advance_choices(self._validate(actions))
         deciding = self.sim.tasks.needs_decision()  # once for the observations, masks and infos
         observations = self._observations(deciding)
@@ -214,6 +213,7 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         unchecked: the caller checked them), the arena advanced to the step's end, the values
         plan applied. Returns every robot's reward `(n,)` and whether the episode is truncated;
         the step's observations, masks and infos are then `arena_arrays`."""
+        self._require_running()
         history = self._recorder()
         for i, circuit in choices:
             self.sim.choose(i, circuit)
@@ -238,6 +238,10 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
             self.num_cycles >= opts.max_cycles or self.sim.time_s >= opts.max_sim_time_s - 1e-9
         )
         return rewards, truncated
+
+    def _require_running(self) -> None:
+        if not self.agents:
+            raise ValueError("step() called on a finished episode; call reset() first")
 
     def _plan_values(self, rng: np.random.Generator) -> list[tuple[float, tuple[float, ...]]]:
         """The episode's planned priority changes, drawn at reset before the arena: `(at_s,
