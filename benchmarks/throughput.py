@@ -18,11 +18,16 @@ picking a circuit uniformly at random (seeded):
 
 Times are CPU seconds of the measuring process (`time.process_time`), so other processes on a
 shared machine do not count; the cases take turns round after round (`--repeats`), and the
-machine's load average is recorded with every row. Reported: speeds, env / replay and env / bare
+machine's load average is recorded with every row. By default (`--no-batched`: not), each round
+also times `BatchedArenaEnv` with K = 16 `dahl2004` arenas in one process (robot decisions per
+CPU second, beside the plain env's in the same round and process and the compiled tick loop's own
+ceiling: decisions per CPU second spent inside `run_ticks`), and the same batch in 1 and 2 worker
+processes (decisions per wall-clock second). Reported: speeds, env / replay and env / bare
 loop and env / compiled floor (ticks per CPU second, paired by round), peak memory. Goal (issue
 24): at 6 robots at least 0.95 of the bare loop and 0.5 of the replay; the exit status is 1 if it
 is missed. Goals of issue 38 against the compiled floor (reported, not yet enforced): 6 robots
->= 0.45, 96 robots >= 0.5, 6 robots every 1 s >= 0.25. Writes
+>= 0.45, 96 robots >= 0.5, 6 robots every 1 s >= 0.25; batched K = 16 >= 10,000 decisions per
+CPU second, 2 workers >= 1.8x 1. Writes
 `throughput.{csv,md,json}` into a new run folder under runs/ (git ignores it), `--out`, or with
 `--update-reference` benchmarks/results/throughput/.
 
@@ -60,6 +65,8 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+import numpy as np
+
 import tavc_env
 from arena_runs import TEAM_SIZES as SIZES
 from arena_runs import random_choice_run
@@ -68,8 +75,14 @@ from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.study import Outcome, StudySettings, run_study
+from tavc_env.adapters.batched import BatchedArenaEnv
 from tavc_env.config import ArenaConfig
-from tavc_env.measurement import compiled_floor, physics_floor, physics_replay
+from tavc_env.measurement import (
+    compiled_floor,
+    compiled_loop_timer,
+    physics_floor,
+    physics_replay,
+)
 
 SIM_HOURS = {6: 5.0, 24: 1.0, 96: 0.25, 384: 0.05}  # per repeat, about a CPU second or less each
 # Goals (issue 24): at 6 robots the public parallel API reaches 95 % of the bare loop's speed
@@ -78,6 +91,12 @@ FLOOR_GOAL = 0.95
 REPLAY_GOAL = 0.5
 # Goals (issue 38) against the compiled physics floor, by case: reported, not yet enforced
 COMPILED_GOALS = {"6": 0.45, "96": 0.5, "6 every 1 s": 0.25}
+# Goals (issue 38) of the batched view: K = 16 arenas in one process, and 2 worker processes
+BATCH_ARENAS = 16
+BATCH_GOAL = 10_000  # robot decisions per CPU second in one process
+WORKERS_GOAL = 1.8  # 2 worker processes over 1, wall-clock decisions per second
+BATCH_STEPS = 400  # batched steps per round (about 6,400 decisions at K = 16)
+BATCH_EPISODE_S = 3600.0  # each arena's episode (then same-step autoreset)
 Row = dict[str, Any]
 
 
@@ -102,6 +121,8 @@ class Settings(StudySettings):
     """physics step (default: the package's)"""
     quick: bool = False
     """smoke run: 2 rounds, short runs"""
+    batched: bool = True
+    """also time K = 16 batched arenas in one process and 1 vs 2 worker processes"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -179,6 +200,74 @@ def run_case(
     return rows
 
 
+def batched_run(
+    config: ArenaConfig, arenas: int, steps: int, seed: int, workers: int = 0
+) -> dict[str, Any]:
+    """`steps` steps of `BatchedArenaEnv` over `arenas` arenas of `config` (episodes of
+    `BATCH_EPISODE_S`, same-step autoreset), every robot that must decide picking a circuit
+    uniformly at random (seeded [seed, 2]): CPU seconds of this process, wall seconds, robot
+    decisions. The CPU time of worker processes (`workers` > 0) is not this process's: compare
+    those runs by wall time."""
+    kwargs = {"config": config, "max_sim_time_s": BATCH_EPISODE_S, "max_cycles": 10**9}
+    with BatchedArenaEnv(arenas, workers=workers, env_kwargs=kwargs) as batch:
+        rng = np.random.default_rng([seed, 2])
+        moves = rng.integers(0, config.n_circuits, (steps, arenas, config.n_robots))
+        _, infos = batch.reset(seed=seed)
+        deciding = infos["action_required"]
+        decisions = 0
+        cpu0, wall0 = time.process_time(), time.perf_counter()
+        for actions in moves:
+            decisions += int(deciding.sum())
+            deciding = batch.step(actions).must_decide
+        cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    return {"cpu_s": cpu, "wall_s": wall, "decisions": decisions}
+
+
+def compiled_loop_cpu(config: ArenaConfig, arenas: int, steps: int, seed: int) -> float:
+    """CPU seconds spent inside the compiled tick loop (`run_ticks`) in `batched_run`'s run of
+    the same arguments: the loop's own cost, whatever the adapter around it costs (each call
+    timed; the run is the same trajectory, so the decisions are the same)."""
+    with compiled_loop_timer() as spent:
+        batched_run(config, arenas, steps, seed)
+    return spent[0]
+
+
+def run_batched_case(rep: int, scale: float, dt: float | None) -> list[Row]:
+    """One round of the batched case (in its own process): K = `BATCH_ARENAS` arenas of
+    `dahl2004` in this process (seed `rep`), the plain env in the same round, and the compiled
+    loop's own CPU time in the batch's run (its ceiling: decisions per CPU second if nothing but
+    the loop cost anything)."""
+    config = config_for(6, dt)
+    steps = max(20, round(BATCH_STEPS * scale))
+    if rep == 0:  # untimed: imports, numba, caches
+        batched_run(config, BATCH_ARENAS, 20, 10**6)
+    common = {"case": f"batched K={BATCH_ARENAS}", "robots": 6, "repeat": rep}
+    load = os.getloadavg()[0]
+    batch = batched_run(config, BATCH_ARENAS, steps, rep)
+    loop_cpu_s = compiled_loop_cpu(config, BATCH_ARENAS, steps, rep)
+    plain = random_choice_run(config, rep, SIM_HOURS[6] * 3600.0 * scale * 0.2)
+    return [
+        {**common, "mode": "batched", "load_1min": load, **batch, "loop_cpu_s": loop_cpu_s},
+        {**common, "mode": "env", "load_1min": load, **{k: plain[k] for k in batch}},
+    ]
+
+
+def run_workers_round(rep: int, scale: float, dt: float | None) -> list[Row]:
+    """One round of K = `BATCH_ARENAS` arenas in 1 and then 2 worker processes (wall time: the
+    work is in the workers), with the machine's load before each."""
+    config = config_for(6, dt)
+    steps = max(20, round(BATCH_STEPS * scale))
+    rows = []
+    for workers in (1, 2):
+        load = os.getloadavg()[0]
+        found = batched_run(config, BATCH_ARENAS, steps, rep, workers=workers)
+        rows.append(
+            {"case": "workers", "mode": f"{workers} workers", "repeat": rep, "load_1min": load}
+            | found
+        )
+    return rows
+
+
 def measure_cases(s: Settings) -> list[Row]:
     """Every case in a process of its own, kept for all rounds; the cases take turns, one at a
     time, round after round."""
@@ -186,10 +275,14 @@ def measure_cases(s: Settings) -> list[Row]:
     started = time.perf_counter()
     with ExitStack() as stack:
         pools = [stack.enter_context(ProcessPoolExecutor(max_workers=1)) for _ in s.cases]
+        batched = stack.enter_context(ProcessPoolExecutor(max_workers=1))
         for rep in range(s.repeat_count):
             for (robots, interval_s), pool in zip(s.cases, pools):
                 job = pool.submit(run_case, robots, interval_s, rep, s.hours_scale, s.dt)
                 rows.extend(job.result())
+            if s.batched:
+                rows.extend(batched.submit(run_batched_case, rep, s.hours_scale, s.dt).result())
+                rows.extend(run_workers_round(rep, s.hours_scale, s.dt))
             print(f"round {rep + 1} done ({time.perf_counter() - started:.0f} s)", flush=True)
     return rows
 
@@ -275,6 +368,105 @@ HEADER = [
 ]
 
 
+def batched_findings(rows: Sequence[Row]) -> tuple[str, Row]:
+    """The batched case's paragraph and tables, and its JSON summary: robot decisions per CPU
+    second of K arenas in one process, of the plain env in the same rounds and of the compiled
+    loop alone (the ceiling), paired by round; 1 vs 2 worker processes by wall time."""
+    case = f"batched K={BATCH_ARENAS}"
+    batch = [r for r in rows if r["case"] == case and r["mode"] == "batched"]
+    env = [r for r in rows if r["case"] == case and r["mode"] == "env"]
+    speed = mean_ci([r["decisions"] / r["cpu_s"] for r in batch])
+    plain = mean_ci([r["decisions"] / r["cpu_s"] for r in env])
+    ceiling = mean_ci([r["decisions"] / r["loop_cpu_s"] for r in batch])
+    to_plain = mean_ci(
+        [b["decisions"] / b["cpu_s"] / (e["decisions"] / e["cpu_s"]) for b, e in zip(batch, env)]
+    )
+    to_ceiling = mean_ci([r["loop_cpu_s"] / r["cpu_s"] for r in batch])
+    one = [r for r in rows if r["case"] == "workers" and r["mode"] == "1 workers"]
+    two = [r for r in rows if r["case"] == "workers" and r["mode"] == "2 workers"]
+    wall_one = mean_ci([r["decisions"] / r["wall_s"] for r in one])
+    wall_two = mean_ci([r["decisions"] / r["wall_s"] for r in two])
+    scaling = mean_ci([a["wall_s"] / b["wall_s"] for a, b in zip(one, two)])
+    loads = [r["load_1min"] for r in batch]
+    worker_loads = [r["load_1min"] for r in one + two]
+    goal = f"{'met' if speed[0] >= BATCH_GOAL else 'not met'} (>= {BATCH_GOAL:,})"
+    workers_goal = f"{'met' if scaling[0] >= WORKERS_GOAL else 'not met'} (>= {WORKERS_GOAL:g})"
+    text = "\n".join(
+        [
+            f"**Batched arenas** (`BatchedArenaEnv`, K = {BATCH_ARENAS} `dahl2004` arenas, "
+            f"episodes of {BATCH_EPISODE_S:g} s with same-step autoreset, random choices): robot "
+            "decisions per CPU second of the batch in one process (`workers=0`), of the plain "
+            "env in the same rounds and process, and of the compiled tick loop alone (`run_ticks`, "
+            "each call timed in a second run of the same trajectory: the ceiling the batch can "
+            "approach while each decision needs that many ticks). Then the same batch in 1 and in 2 "
+            "worker processes, decisions per wall-clock second (the work is in the workers; on 2 "
+            "cores shared with other jobs, the load says how idle they were).",
+            "",
+            markdown_table(
+                [
+                    "case",
+                    "decisions / CPU s",
+                    "plain env decisions / CPU s",
+                    "batch / plain env",
+                    "compiled loop ceiling, decisions / CPU s",
+                    "batch / ceiling",
+                    "goal (issue 38)",
+                    "load (1 min)",
+                ],
+                [
+                    [
+                        case,
+                        fmt_ci(*speed[:3], 0),
+                        fmt_ci(*plain[:3], 0),
+                        fmt_ci(*to_plain[:3], 2),
+                        fmt_ci(*ceiling[:3], 0),
+                        fmt_ci(*to_ceiling[:3], 2),
+                        goal,
+                        f"{min(loads):.1f}-{max(loads):.1f}",
+                    ]
+                ],
+            ),
+            "",
+            markdown_table(
+                [
+                    "case",
+                    "1 worker, decisions / wall s",
+                    "2 workers, decisions / wall s",
+                    "2 over 1",
+                    "goal (issue 38)",
+                    "load (1 min)",
+                ],
+                [
+                    [
+                        f"K={BATCH_ARENAS} in workers",
+                        fmt_ci(*wall_one[:3], 0),
+                        fmt_ci(*wall_two[:3], 0),
+                        fmt_ci(*scaling[:3], 2),
+                        workers_goal,
+                        f"{min(worker_loads):.1f}-{max(worker_loads):.1f}",
+                    ]
+                ],
+            ),
+        ]
+    )
+    summary = {
+        "arenas": BATCH_ARENAS,
+        "decisions_per_cpu_s": speed[0],
+        "decisions_per_cpu_s_ci": [speed[1], speed[2]],
+        "plain_env_decisions_per_cpu_s": plain[0],
+        "ratio_to_plain_env": to_plain[0],
+        "ceiling_decisions_per_cpu_s": ceiling[0],
+        "ratio_to_ceiling": to_ceiling[0],
+        "ratio_to_ceiling_ci": [to_ceiling[1], to_ceiling[2]],
+        "goal": goal,
+        "workers_2_over_1": scaling[0],
+        "workers_2_over_1_ci": [scaling[1], scaling[2]],
+        "workers_goal": workers_goal,
+        "load_1min": [min(loads + worker_loads), max(loads + worker_loads)],
+    }
+    return text, summary
+
+
 def build_report(rows: Sequence[Row], s: Settings) -> Report:
     names = [case_name(n, i) for n, i in s.cases]
     found = {
@@ -305,6 +497,9 @@ def build_report(rows: Sequence[Row], s: Settings) -> Report:
         ]
     )
     summary = {name: summary for name, (_, summary) in found.items()}
+    if s.batched:
+        batched, summary["batched"] = batched_findings(rows)
+        body += "\n\n" + batched
     return Report("throughput", "Throughput against its own physics", body, list(rows), summary)
 
 
@@ -320,7 +515,7 @@ def run(settings: Settings) -> Outcome:
     failed = [
         f"FAIL: {name} robots: {found['verdict']}"
         for name, found in report.summary.items()
-        if found["verdict"].startswith("FAIL") or not found["replay_exact"]
+        if name != "batched" and (found["verdict"].startswith("FAIL") or not found["replay_exact"])
     ]
     return Outcome(out, written, f"{report.body}\nwrote {out / 'throughput.md'}", failed)
 

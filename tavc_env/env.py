@@ -52,7 +52,7 @@ import math
 import reprlib
 import weakref
 from array import array
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, Generic, TypeVar
 
 import numpy as np
@@ -129,8 +129,9 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self._action_spaces: dict[str, spaces.Space[Any]] = {
             a: spaces.Discrete(m) for a in self.possible_agents
         }
-        self._busy_mask = [frozen(np.eye(m, dtype=np.int8)[c]) for c in range(m)]
-        self._free_mask = frozen(np.ones(m, np.int8))
+        # row c: only circuit c (a robot busy on c); row m: every circuit (a deciding robot)
+        self._mask_rows = frozen(np.vstack([np.eye(m, dtype=np.int8), np.ones(m, np.int8)]))
+        self._mask_views = list(self._mask_rows)
         self.state_space = self._state_space()
         self.sim: E = self._new_engine()
         self._rng: np.random.Generator | None = None
@@ -194,9 +195,25 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         dict[str, bool],
         dict[str, dict[str, Any]],
     ]:
-        if not self.agents:
-            raise ValueError("step() called on a finished episode; call reset() first")
-        choices = self._validate(actions)
+        self._require_running()
+        rewards, truncated = self.advance_choices(self._validate(actions))
+        deciding = self.sim.tasks.needs_decision()  # once for the observations, masks and infos
+        observations = self._observations(deciding)
+        infos = self._infos(truncated, deciding)
+        terminations = dict.fromkeys(self.agents, False)
+        truncations = dict.fromkeys(self.agents, truncated)
+        reward_of = dict(zip(self.agents, rewards.tolist()))
+        if truncated:
+            self.agents = []
+        return observations, reward_of, terminations, truncations, infos
+
+    def advance_choices(self, choices: list[tuple[int, int]]) -> tuple[np.ndarray, bool]:
+        """The arena part of `step`, for adapters that build arrays themselves (`tavc_env.adapters.
+        batched`): every `(robot, circuit)` choice of the deciding robots applied (in robot order,
+        unchecked: the caller checked them), the arena advanced to the step's end, the values
+        plan applied. Returns every robot's reward `(n,)` and whether the episode is truncated;
+        the step's observations, masks and infos are then `arena_arrays`."""
+        self._require_running()
         history = self._recorder()
         for i, circuit in choices:
             self.sim.choose(i, circuit)
@@ -220,14 +237,11 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         truncated = (
             self.num_cycles >= opts.max_cycles or self.sim.time_s >= opts.max_sim_time_s - 1e-9
         )
-        deciding = self.sim.tasks.needs_decision()  # once for the observations, masks and infos
-        observations = self._observations(deciding)
-        infos = self._infos(truncated, deciding)
-        terminations = dict.fromkeys(self.agents, False)
-        truncations = dict.fromkeys(self.agents, truncated)
-        if truncated:
-            self.agents = []
-        return observations, rewards, terminations, truncations, infos
+        return rewards, truncated
+
+    def _require_running(self) -> None:
+        if not self.agents:
+            raise ValueError("step() called on a finished episode; call reset() first")
 
     def _plan_values(self, rng: np.random.Generator) -> list[tuple[float, tuple[float, ...]]]:
         """The episode's planned priority changes, drawn at reset before the arena: `(at_s,
@@ -452,18 +466,18 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         )
         return int(a)  # type: ignore[call-overload]
 
-    def _rewards(self, out: Advance) -> dict[str, float]:
-        rewards = dict.fromkeys(self.agents, 0.0)
+    def _rewards(self, out: Advance) -> np.ndarray:
+        rewards = np.zeros(self.config.n_robots)
         self._last_task_time[:] = math.nan
         self._last_task_value[:] = 0.0
         unit = TIME_UNITS[self.options.reward_time_unit]
         per_value = self.options.reward == "value"
         values = self.sim.tasks.values
+        top = values.max() if out.completions else 1.0  # (a reduction, once per step)
         for c in out.completions:
-            agent = self.possible_agents[c.robot]
             w = values[c.circuit]
-            rewards[agent] += float(w if per_value else w / (c.task_time_s * unit))
-            self.delivered_value += float(values[c.circuit] / values.max())
+            rewards[c.robot] += float(w if per_value else w / (c.task_time_s * unit))
+            self.delivered_value += float(w / top)
             self.episode_value += float(w)
             self._last_task_value[c.robot] = float(w)
             self._last_task_time[c.robot] = float(c.task_time_s)
@@ -483,17 +497,20 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         }
 
     def _masks(self, deciding: np.ndarray | None = None) -> list[np.ndarray]:
+        """Every robot's action mask (`arena_arrays`), as shared read-only rows (none built per step)."""
         tasks = self.sim.tasks
         if deciding is None:
             deciding = tasks.needs_decision()
-        busy, free = self._busy_mask, self._free_mask
-        return [free if d else busy[c] for d, c in zip(_plain(deciding), _plain(tasks.circuit))]
+        rows, free = self._mask_views, self.config.n_circuits
+        return [rows[free if d else c] for d, c in zip(_plain(deciding), _plain(tasks.circuit))]
 
     def _infos(
         self, truncated: bool, deciding: np.ndarray | None = None
     ) -> dict[str, dict[str, Any]]:
-        """Every agent's info; `deciding`: `needs_decision()` if the caller has it. Built from
-        each array read once as Python numbers (not a numpy scalar per agent and key)."""
+        """Every agent's info; `deciding`: `needs_decision()` if the caller has it. The fields of
+        `arena_arrays`, from each array read once as Python numbers (a dict per agent made from
+        `arena_arrays` costs 3x as much per step; tests/tavc_env/adapters/test_batched.py checks
+        that the two agree)."""
         tasks = self.sim.tasks
         now = float(self.sim.time_s)
         if deciding is None:
@@ -601,6 +618,42 @@ class TavcArenaEnv(ArenaEnv[Simulation]):
     def snapshot(self) -> ArenaSnapshot:
         """The arena now: positions, headings, targets, circuits, phases (copies)."""
         return self.sim.snapshot()
+
+
+def arena_arrays(envs: Sequence[ArenaEnv[Any]], truncated: Sequence[bool]) -> dict[str, np.ndarray]:
+    """The observations, action masks and every info field of arenas `envs` now (envs of one
+    kind, config and options), stacked over the arenas `(K, n, ...)`, each built once from the
+    engines' arrays: what a batched view returns, the numbers of the dicts the plain env's
+    `step` returns (`truncated[k]`: arena k's episode was truncated). The mask gives a robot
+    that must decide every circuit, one that need not only the circuit it serves."""
+    first = envs[0]
+    n, m = first.config.n_robots, first.config.n_circuits
+    sims = [env.sim for env in envs]
+    tasks = [sim.tasks for sim in sims]
+    deciding = np.array([t.needs_decision() for t in tasks], bool)
+    circuit = np.array([t.circuit for t in tasks], np.int64)
+    phase = np.array([t.phase for t in tasks], np.int64)
+    task_time = np.array([env._last_task_time for env in envs])
+    done = ~np.isnan(task_time)
+    now = np.array([sim.time_s for sim in sims], float)[:, None]
+    jammed = np.array([bool(sim.jammed) for sim in sims])[:, None]
+    return {
+        "observations": first._builder.stacked(
+            sims, [env._last_task_by_circuit for env in envs], circuit
+        ),
+        "action_mask": first._mask_rows[np.where(deciding, m, circuit)],
+        "action_required": deciding & ~np.array(truncated, bool)[:, None],
+        "circuit": circuit,
+        "phase": phase,
+        "broken": phase == _BROKEN,
+        "task_completed": done,
+        "task_time_s": np.where(done, task_time, 0.0),
+        "task_value": np.where(done, np.array([env._last_task_value for env in envs]), 0.0),
+        "elapsed_s": now - np.array([t.decision_time for t in tasks], float),
+        "sim_time_s": np.repeat(now, n, axis=1),
+        "completed_tasks": np.array([t.completed for t in tasks], np.int64),
+        "jammed": np.repeat(jammed, n, axis=1),
+    }
 
 
 def _plain(values: Any) -> list[Any]:

@@ -1,8 +1,8 @@
 """Measuring the physics engine: runs with fixed allocations, an observer that counts the ticks
 each robot spends in each mode of its task (`ModeTicks`, by `Mode`), one that watches the spacing
 between robots (`SpacingMonitor`), and the bare-physics yardsticks of the engine's speed
-(`CommandRecorder`, `compiled_floor`, `physics_replay`, `physics_floor`; the env's own speed is
-timed by
+(`CommandRecorder`, `compiled_floor`, `physics_replay`, `physics_floor`), the compiled tick loop's
+own share of a run (`compiled_loop_timer`; the env's own speed is timed by
 `benchmarks/arena_runs.py`).
 
 Observers attach with `Simulation.add_observer` and only read the simulation's public views, so a
@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -26,13 +28,14 @@ import numpy as np
 
 from tavc_env.config import JAM_WINDOW_S as JAM_WINDOW_S
 from tavc_env.config import ArenaConfig, make_config
+from tavc_env.engine import simulation as _simulation
 
 # Public here, for what measures the engine from outside it: the modes ModeTicks counts, the task
 # phases, the jam detector's and the stuck escape's thresholds, and whether the compiled controller
 # is cached (a first run compiles it)
 from tavc_env.engine.navigation import STUCK_PATIENCE_S as STUCK_PATIENCE_S
 from tavc_env.engine.navigation import compiled_cache_ready as compiled_cache_ready
-from tavc_env.engine.navigation import replay_commands
+from tavc_env.engine.navigation import replay_commands, run_ticks
 from tavc_env.engine.simulation import JAM_MOTION_M as JAM_MOTION_M
 from tavc_env.engine.simulation import EngineEvent, Simulation
 from tavc_env.engine.tasks import PHASE_NAMES as PHASE_NAMES
@@ -359,3 +362,25 @@ def physics_floor(config: ArenaConfig, seed: int, ticks: int, each_tick: bool) -
             space.step(dt)
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
     return {"cpu_s": cpu, "wall_s": wall, "sim_s": ticks * dt, "ticks": ticks, "decisions": 0}
+
+
+@contextmanager
+def compiled_loop_timer() -> Iterator[list[float]]:
+    """While the block runs, time every call of every arena into the compiled tick loop
+    (`run_ticks`: physics, controller, task rules): yields a one-item list holding the CPU seconds
+    (`time.process_time`) spent inside the loop so far. The loop's own cost beside a whole run's,
+    so its ceiling (`benchmarks/throughput.py`); the trajectory is unchanged. In this process and
+    thread only (the block replaces the engine's reference to the loop)."""
+    from unittest import mock  # (a measuring tool: not loaded with the package)
+
+    spent = [0.0]
+
+    def timed(*args: Any) -> Any:
+        start = time.process_time()
+        try:
+            return run_ticks(*args)
+        finally:
+            spent[0] += time.process_time() - start
+
+    with mock.patch.object(_simulation, "run_ticks", timed):
+        yield spent

@@ -75,28 +75,45 @@ class ObservationBuilder:
             pose = m + n + 2  # cos, sin heading and vx, vy may be negative
             low[pose : pose + 4] = -1.0
         self.space = spaces.Box(low, np.ones(size, np.float32), (size,), np.float32)
-        # The paper's modes take one of m values per robot: shared read-only constants, not two
-        # new arrays per agent per step (that dominated steps with hundreds of robots).
+        # The paper's modes take one of m values per robot: rows of one shared read-only table
+        # (robot or 0, circuit), not two new arrays per agent per step (that dominated steps
+        # with hundreds of robots).
         eye = np.eye(m, dtype=np.float32)
         ids = np.eye(n, dtype=np.float32)
-        self._constant: list[list[np.ndarray]] = [
-            [
-                frozen(np.concatenate([eye[c], ids[i]]) if mode != "paper" else eye[c])
-                for c in range(m)
-            ]
-            for i in range(n if mode != "paper" else 1)
-        ]
+        per_robot = mode != "paper"
+        self._table = frozen(
+            np.array(
+                [
+                    [np.concatenate([eye[c], ids[i]]) if per_robot else eye[c] for c in range(m)]
+                    for i in range(n if per_robot else 1)
+                ]
+            )
+        )
+        self._row_of = np.arange(n) if per_robot else np.zeros(n, np.int64)
+        self._rows = [list(rows) for rows in self._table]  # read-only views, made once
         self._v_ref = max(r.speed for r in config.robots)
 
     def build(self, sim: Any, last_task_s: np.ndarray) -> list[np.ndarray]:
-        """Every robot's observation now. `last_task_s[i, c]`: robot i's last task time on
-        circuit c in seconds (NaN: none yet)."""
+        """Every robot's observation now, one vector per robot (read-only in the paper's modes).
+        `last_task_s[i, c]`: robot i's last task time on circuit c in seconds (NaN: none yet)."""
+        if self.mode == "rich":
+            return list(self._rich(sim, last_task_s))
+        circuits = _plain(sim.tasks.circuit)
         if self.mode == "paper":
-            row = self._constant[0]
-            return [row[c] for c in _plain(sim.tasks.circuit)]
-        if self.mode == "paper_id":
-            return [rows[c] for rows, c in zip(self._constant, _plain(sim.tasks.circuit))]
-        return list(self._rich(sim, last_task_s))
+            row = self._rows[0]
+            return [row[c] for c in circuits]
+        return [rows[c] for rows, c in zip(self._rows, circuits)]
+
+    def stacked(
+        self, sims: list[Any], last_task_s: list[np.ndarray], circuit: np.ndarray
+    ) -> np.ndarray:
+        """The observations of several arenas now, `(K, n, k)` float32 (the rows of `build`):
+        arena k's engine `sims[k]`, its last task times `last_task_s[k]` and circuits
+        `circuit[k]`."""
+        if self.mode == "rich":
+            return np.array([self._rich(sim, last) for sim, last in zip(sims, last_task_s)])
+        rows: np.ndarray = self._table[self._row_of, circuit]
+        return rows
 
     def _rich(self, sim: Any, last_task_s: np.ndarray) -> np.ndarray:
         cfg = self.config

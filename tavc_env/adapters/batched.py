@@ -2,14 +2,22 @@
 
 `BatchedArenaEnv(n_envs, workers=w, env_kwargs={...})` holds `n_envs` copies of the arena (each
 built by `make_env(**env_kwargs)`, by default `tavc_env.arena.make_env`: a scenario or a preset),
-split into `w` contiguous groups, one per worker process (`workers=0`: all in this process, for
-debugging and for one arena). A step sends each worker its groups' actions and returns, with `N = n_envs` and `n` robots:
+split into `w` contiguous groups, one per worker process (`workers=0`: all in this process, the
+cheapest per decision; workers only to use more cores). A step sends each worker its groups'
+actions and returns, with `N = n_envs` and `n` robots:
 
 - `observations`: `(N, n, k)` float32, the env's observation vector of every robot;
 - `rewards`: `(N, n)` float64; `terminated`, `truncated`: `(N,)` bool (a whole arena ends at once);
 - `infos`: a dict of arrays: every info field of the env, `(N, n)` (`action_required` is who must
   decide next, `elapsed_s`, `task_time_s`, `sim_time_s`, ...), and `action_mask` `(N, n, m)` int8.
   `BatchedStep.must_decide` and `.action_masks` name the two a loop needs.
+
+Two calls are the whole API: `reset(seed) -> (observations, infos)` and `step(actions) ->
+BatchedStep`. No per-agent dicts are built on the way: each arena steps through the env's own
+`ArenaEnv.advance_choices` (the arena part of its `step`), and a group's observations, masks and
+infos come from its engines' arrays at once (`tavc_env.env.arena_arrays`); arena `i` is the plain
+env reset with the `i`-th spawned seed (below), step for step. The infos are the numbers of the
+current env version (`tavc_arena_v1`) whatever `make_env` builds.
 
 This is the layout of CleanRL's loops and of TorchRL's batched multi-agent tensors. Actions are an
 integer array `(N, n)`; only entries of robots that must decide are read (others may hold anything,
@@ -62,7 +70,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
 from tavc_env.arena import make_env as arena_env
-from tavc_env.env import ArenaEnv
+from tavc_env.env import ArenaEnv, arena_arrays
 from tavc_env.validation import is_integer, is_number, require
 
 Arrays = dict[str, Any]  # field -> stacked array (and "final_info" -> such a dict)
@@ -108,27 +116,12 @@ class BatchedStep(NamedTuple):
         return mask
 
 
-def arena_row(
-    agents: Sequence[str], obs: Mapping[str, Any], infos: Mapping[str, Mapping[str, Any]]
-) -> Arrays:
-    """One arena's observations and infos, robot by robot (in `agents` order), as arrays."""
-    first = obs[agents[0]]
-    if isinstance(first, Mapping):  # observation_format="dict"
-        vectors = [obs[a]["observation"] for a in agents]
-        masks = [obs[a]["action_mask"] for a in agents]
-    else:  # "box": the mask is in the infos
-        vectors = [obs[a] for a in agents]
-        masks = [infos[a]["action_mask"] for a in agents]
-    row = {"observations": np.stack(vectors).astype(np.float32), "action_mask": np.stack(masks)}
-    for key in infos[agents[0]]:
-        if key != "action_mask":
-            row[key] = np.array([infos[a][key] for a in agents])
-    return row
-
-
 class ArenaGroup:
-    """Some arenas stepped in turn, their results stacked: the work of one worker (or of the
-    in-process mode). Knows nothing of processes."""
+    """Some arenas stepped in turn (`ArenaEnv.advance_choices`), every result built for all of
+    them at once from their engines' arrays (`tavc_env.env.arena_arrays`), no per-agent dicts:
+    the work of one worker (or of the in-process mode). Knows nothing of processes. Only the
+    actions of robots that must decide are read, unchecked (`BatchedArenaEnv.step` checks
+    them)."""
 
     def __init__(self, make_env: EnvFactory, env_kwargs: Mapping[str, Any], count: int) -> None:
         self.envs = [make_env(**env_kwargs) for _ in range(count)]
@@ -136,46 +129,37 @@ class ArenaGroup:
         self._deciding = np.zeros((count, len(self.agents)), bool)
 
     def reset(self, seeds: Sequence[int | None]) -> Arrays:
-        rows = [
-            arena_row(self.agents, *env.reset(seed=seed)) for env, seed in zip(self.envs, seeds)
-        ]
-        return self._stack(rows, {})
+        for env, seed in zip(self.envs, seeds):
+            env.reset(seed=seed)
+        out = arena_arrays(self.envs, [False] * len(self.envs))
+        self._deciding = out["action_required"].copy()  # the caller may write to its own
+        return out
 
     def step(self, actions: np.ndarray) -> Arrays:
-        rows, finals = [], {}
-        for e, env in enumerate(self.envs):
-            chosen = {
-                agent: int(a)
-                for agent, a, deciding in zip(self.agents, actions[e], self._deciding[e])
-                if deciding
-            }
-            obs, rewards, terminations, truncations, infos = env.step(chosen)
-            row = arena_row(self.agents, obs, infos)
-            row["rewards"] = np.array([rewards[a] for a in self.agents])
-            row["terminated"] = np.bool_(any(terminations.values()))
-            row["truncated"] = np.bool_(any(truncations.values()))
-            if not env.agents:  # the episode ended: same-step autoreset
-                finals[e] = row
-                row = {**arena_row(self.agents, *env.reset()), **{k: row[k] for k in _STEP_ONLY}}
-            rows.append(row)
-        return self._stack(rows, finals)
+        count = len(self.envs)
+        rewards = np.zeros((count, len(self.agents)))
+        truncated = np.zeros(count, bool)
+        for e, (env, deciding) in enumerate(zip(self.envs, self._deciding)):
+            row = actions[e]
+            choices = [(i, int(row[i])) for i in deciding.nonzero()[0].tolist()]
+            rewards[e], truncated[e] = env.advance_choices(choices)
+        out: Arrays = arena_arrays(self.envs, truncated.tolist())
+        ended = truncated.nonzero()[0].tolist()
+        if ended:  # same-step autoreset; only the finished arenas' rows travel (most steps none)
+            out["final"] = {key: value[ended] for key, value in out.items()}
+            for e in ended:
+                self.envs[e].reset()  # its generator continues
+            fresh = arena_arrays([self.envs[e] for e in ended], [False] * len(ended))
+            for key, value in fresh.items():
+                out[key][ended] = value
+        self._deciding = out["action_required"].copy()  # the caller may write to its own
+        out.update(rewards=rewards, terminated=np.zeros(count, bool), truncated=truncated)
+        out["_final"] = truncated.copy()
+        return out
 
     def close(self) -> None:
         for env in self.envs:
             env.close()
-
-    def _stack(self, rows: list[Arrays], finals: Mapping[int, Arrays]) -> Arrays:
-        out: Arrays = {key: np.stack([row[key] for row in rows]) for key in rows[0]}
-        self._deciding = out["action_required"].copy()  # the caller may write to its own
-        if "rewards" in out:
-            out["_final"] = np.isin(np.arange(len(rows)), list(finals))
-            if finals:  # only the finished arenas' rows travel (most steps have none)
-                out["final"] = {
-                    key: np.stack([finals[e][key] for e in sorted(finals)])
-                    for key in rows[0]
-                    if key not in _STEP_ONLY
-                }
-        return out
 
 
 _STEP_ONLY = ("rewards", "terminated", "truncated")
@@ -635,8 +619,9 @@ def _layout(probe: ArenaEnv[Any]) -> Layout:
     """The fields a step returns for one arena of `probe`'s kind (read from a reset of it), the
     widest first so that every field stays aligned in the shared block."""
     n = len(probe.possible_agents)
-    row = arena_row(probe.possible_agents, *probe.reset(seed=0))
-    fields = [(key, value.dtype.str, value.shape) for key, value in row.items()]
+    probe.reset(seed=0)
+    row = arena_arrays([probe], [False])
+    fields = [(key, value.dtype.str, value.shape[1:]) for key, value in row.items()]
     fields += [("rewards", "<f8", (n,)), ("terminated", "|b1", ()), ("truncated", "|b1", ())]
     fields += [("_final", "|b1", ())]
     return sorted(fields, key=lambda field: -np.dtype(field[1]).itemsize)

@@ -92,11 +92,16 @@ def test_quick_run_of_six_robots(tmp_path: Path) -> None:
     )
     assert done.returncode in (0, 1), done.stderr  # 1: a goal missed (not judged here)
     summary = json.loads((tmp_path / "throughput.json").read_text())["summary"]
+    batched = summary.pop("batched")
     assert list(summary) == ["6", "6 every 1 s"]
     assert all(found["replay_exact"] for found in summary.values())
     assert all(found["sim_s_per_cpu_s"] > 0 for found in summary.values())
+    # the compiled loop is a part of the batch's CPU time: its ceiling is above the batch
+    assert 0 < batched["ratio_to_ceiling"] < 1 and batched["workers_2_over_1"] > 0
     lines = (tmp_path / "throughput.csv").read_text().splitlines()
-    assert len(lines) == 1 + 2 * 2 * 4  # env, replay, compiled floor, bare loop per case, round
+    # env, replay, compiled floor, bare loop per case and round; batched, its plain env and
+    # 1 and 2 workers per round
+    assert len(lines) == 1 + 2 * 2 * 4 + 2 * 4
 
 
 def test_the_run_to_profile() -> None:

@@ -17,6 +17,7 @@ from tavc_env.measurement import (
     ModeTicks,
     SpacingMonitor,
     compiled_floor,
+    compiled_loop_timer,
     physics_floor,
     physics_replay,
     run_fixed,
@@ -161,3 +162,14 @@ def test_the_physics_yardsticks_replay_the_env_exactly(robots: int) -> None:
     for replay in (compiled_floor, physics_replay):
         found = replay(config, recorded)
         assert found["exact"] and found["ticks"] == recorded["ticks"] == 1200
+
+
+def test_the_compiled_loop_timer_times_a_part_of_a_run_and_changes_nothing() -> None:
+    config = tavc_env.make_config("dahl2004")
+    plain = random_choice_run(config, 3, 300.0)
+    loop_before = tavc_env.engine.simulation.run_ticks
+    with compiled_loop_timer() as spent:
+        timed = random_choice_run(config, 3, 300.0)
+    assert tavc_env.engine.simulation.run_ticks is loop_before  # restored
+    assert (timed["ticks"], timed["decisions"]) == (plain["ticks"], plain["decisions"])
+    assert 0.0 < spent[0] < timed["cpu_s"]

@@ -25,6 +25,8 @@ from tavc_env.adapters.batched import (
     WorkerError,
     WorkerTimeoutError,
 )
+from tavc_env.arena import make_env
+from tavc_env.config import Breakdown
 from tavc_env.env import TavcArenaEnv
 
 SHORT = {"preset": "dahl2004", "max_sim_time_s": 300.0}  # an episode of about 15-20 steps
@@ -44,13 +46,13 @@ def trajectory(batch: BatchedArenaEnv, seed: int, steps: int) -> list[np.ndarray
 
 
 def failing_env(**kwargs: Any) -> TavcArenaEnv:
-    """An arena whose `step` raises (a module-level function: spawn sends it by name)."""
+    """An arena whose step raises (a module-level function: spawn sends it by name)."""
     env = tavc_env.parallel_env(**kwargs)
 
-    def broken_step(actions: Any) -> Any:
+    def broken_step(choices: Any) -> Any:
         raise ZeroDivisionError("a fault planted in the worker")
 
-    env.step = broken_step  # type: ignore[method-assign]
+    env.advance_choices = broken_step  # type: ignore[method-assign]
     return env
 
 
@@ -58,23 +60,23 @@ FROZEN_SEED = int(np.random.SeedSequence(0).spawn(2)[1].generate_state(1)[0])  #
 
 
 def freezing_env(**kwargs: Any) -> TavcArenaEnv:
-    """An arena whose `step` never returns once it was reset with `FROZEN_SEED` (arena 1 of a
+    """An arena whose step never returns once it was reset with `FROZEN_SEED` (arena 1 of a
     batch reset with seed 0): a worker frozen in a step."""
     env = tavc_env.parallel_env(**kwargs)
-    reset, step = env.reset, env.step
+    reset, step = env.reset, env.advance_choices
     seeds: list[Any] = []
 
     def recording_reset(seed: Any = None, options: Any = None) -> Any:
         seeds.append(seed)
         return reset(seed=seed, options=options)
 
-    def frozen_step(actions: Any) -> Any:
+    def frozen_step(choices: Any) -> Any:
         if seeds and seeds[0] == FROZEN_SEED:
             time.sleep(3600)
-        return step(actions)
+        return step(choices)
 
     env.reset = recording_reset  # type: ignore[method-assign]
-    env.step = frozen_step  # type: ignore[method-assign]
+    env.advance_choices = frozen_step  # type: ignore[method-assign]
     return env
 
 
@@ -345,3 +347,101 @@ def _alive(pid: int) -> bool:
             return fh.read().rpartition(")")[2].split()[0] != "Z"
     except FileNotFoundError:
         return False
+
+
+BROKEN_AND_REPAIRED = (Breakdown(robot=1, at_s=40.0, repair_after_s=90.0), Breakdown(4, 100.0))
+STEPPING = [
+    pytest.param({"preset": "dahl2004", "max_sim_time_s": 300.0}, id="dahl2004-events"),
+    pytest.param(
+        {
+            "preset": "dahl2004",
+            "max_sim_time_s": 120.0,
+            "decision_interval_s": 1.0,
+            "breakdowns": BROKEN_AND_REPAIRED,
+        },
+        id="dahl2004-1s-breakdowns",
+    ),
+    pytest.param(
+        {
+            "scenario": "three_circuits",
+            "max_sim_time_s": 400.0,
+            "observation_mode": "rich",
+            "observation_format": "box",
+        },
+        id="three_circuits-rich-box",
+    ),
+    pytest.param(
+        {
+            "scenario": "bad_start",
+            "max_sim_time_s": 120.0,
+            "decision_interval_s": 1.0,
+            "observation_mode": "paper_id",
+        },
+        id="bad_start-1s",
+    ),
+]
+
+
+def plain_row(obs: dict[str, Any], infos: dict[str, Any], agents: list[str]) -> dict[str, Any]:
+    """One plain env's observations and infos as the batch lays them out, from its dicts."""
+    first = obs[agents[0]]
+    boxed = not isinstance(first, dict)
+    row = {
+        "observations": np.stack([obs[a] if boxed else obs[a]["observation"] for a in agents]),
+        "action_mask": np.stack(
+            [infos[a]["action_mask"] if boxed else obs[a]["action_mask"] for a in agents]
+        ),
+    }
+    for key in infos[agents[0]]:
+        if key != "action_mask":
+            row[key] = np.array([infos[a][key] for a in agents])
+    return row
+
+
+def assert_row(found: dict[str, np.ndarray], e: int, expected: dict[str, Any]) -> None:
+    for key, value in expected.items():
+        assert np.array_equal(found[key][e], value), key
+        assert found[key].dtype == value.dtype, key
+
+
+@pytest.mark.parametrize("kwargs", STEPPING)
+def test_every_arena_is_the_plain_env_with_its_spawned_seed_step_for_step(
+    kwargs: dict[str, Any],
+) -> None:
+    """Arena e of the batch is `make_env` reset with the e-th seed spawned from the batch's seed:
+    the same observations, masks, rewards, truncations and every info number, step after step,
+    through breakdowns and repairs and across an episode's end (same-step autoreset)."""
+    n_envs, seed = 2, 11
+    envs = [make_env(**kwargs) for _ in range(n_envs)]
+    agents = envs[0].possible_agents
+    spawned = np.random.SeedSequence(seed).spawn(n_envs)
+    plain = [env.reset(seed=int(s.generate_state(1)[0])) for env, s in zip(envs, spawned)]
+    rng = np.random.default_rng(seed)
+    ended = broken = 0
+    with BatchedArenaEnv(n_envs, env_kwargs=kwargs) as batch:
+        obs, infos = batch.reset(seed=seed)
+        found = {"observations": obs, **infos}
+        for _ in range(160):
+            for e in range(n_envs):
+                assert_row(found, e, plain_row(*plain[e], agents))
+            actions = rng.integers(0, batch.n_circuits, (n_envs, len(agents)))
+            step = batch.step(actions)
+            found = {"observations": step.observations, **step.infos}
+            for e, env in enumerate(envs):
+                chosen = {
+                    a: int(actions[e, i])
+                    for i, a in enumerate(agents)
+                    if plain[e][1][a]["action_required"]
+                }
+                o, rewards, _, truncations, i = env.step(chosen)
+                assert step.rewards[e].tolist() == [rewards[a] for a in agents]
+                assert bool(step.truncated[e]) == truncations[agents[0]]
+                broken += sum(info["broken"] for info in i.values())
+                plain[e] = (o, i)
+                if not env.agents:
+                    ended += 1
+                    final = {"observations": step.infos["final_obs"], **step.infos["final_info"]}
+                    assert_row(final, e, plain_row(o, i, agents))
+                    plain[e] = env.reset()
+    assert ended >= n_envs  # every arena crossed an episode's end
+    assert broken > 0 or "breakdowns" not in kwargs
