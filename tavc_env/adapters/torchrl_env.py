@@ -51,14 +51,13 @@ except ImportError as exc:  # an optional extra: say which
         "(pip install 'tavc-env[marl]'; docs/tutorials/deep_marl.md for the CPU build of torch)"
     ) from exc
 
+from tavc_env.adapters.batched import MAX_ENVS
 from tavc_env.arena import make_env
 from tavc_env.env import ArenaEnv
 from tavc_env.validation import is_integer, require
 
 GROUP = "robot"
 """The key of the robots' entries (`(GROUP, "observation")`, ...)."""
-MAX_ENVS = 4096
-"""The most arenas one `TorchArenaEnv` holds (as `tavc_env.adapters.batched.MAX_ENVS`)."""
 DEFAULT_ENV_KWARGS: Mapping[str, Any] = {
     "observation_mode": "paper_id",
     "observation_format": "dict",
@@ -71,7 +70,7 @@ class TorchArenaEnv(EnvBase):
     docstring for the keys).
 
     Args:
-        n_envs: arenas in the batch (`K`), at most `MAX_ENVS`.
+        n_envs: arenas in the batch (`K`), at most `tavc_env.adapters.batched.MAX_ENVS`.
         env_kwargs: arguments of `tavc_env.arena.make_env` (a `scenario` or a `preset`, arena
             overrides, env options such as `reward="value"`, `max_sim_time_s`), over
             `DEFAULT_ENV_KWARGS`; `observation_format` must stay "dict".

@@ -360,7 +360,11 @@ def train(
     learner = make_learner(env, s)
     optimiser = torch.optim.Adam(learner.loss.parameters(), s.lr)
     collector = Collector(
-        env, learner.actor, frames_per_batch=s.n_envs * s.steps_per_batch, total_frames=-1
+        env,
+        learner.actor,
+        frames_per_batch=s.n_envs * s.steps_per_batch,
+        total_frames=-1,
+        auto_register_policy_transforms=False,  # the actor needs no recurrent-state tracker
     )
     done = steps = 0
     collect = update_cpu = 0.0
