@@ -168,3 +168,26 @@ def test_per_class_parameters_route_each_robot_to_its_speed_class() -> None:
 def test_bad_settings_are_refused_naming_the_value(field: str, value: object) -> None:
     with pytest.raises(ValueError, match=f"{field} = "):
         smdp_ppo.PpoSettings(**{field: value})  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"algorithm": "ippo", "parameters": "robot"},
+        {"parameters": "class", "credit": "team"},
+        {"discount": "step", "rows": "all"},
+    ],
+)
+def test_every_variant_trains_a_few_batches(changes: dict[str, Any]) -> None:
+    """Each variant's updates change the actor it starts from (the same first draw of torch's
+    generator as `make_learner` here)."""
+    s = smdp_ppo.PpoSettings(n_envs=2, steps_per_batch=30, epochs=1, minibatch=32, **changes)
+    env = TorchArenaEnv(2, env_kwargs=KWARGS, seed=0, with_state=s.algorithm == "mappo")
+    torch.manual_seed(0)
+    initial = [p.detach().clone() for p in smdp_ppo.make_learner(env, s).actor_net.parameters()]
+    torch.manual_seed(0)
+    learner, progress = smdp_ppo.train(env, s, 100)
+    assert progress.decisions >= 100
+    trained = list(learner.actor_net.parameters())
+    assert all(a.shape == b.shape for a, b in zip(trained, initial))
+    assert any(not torch.equal(a.detach(), b) for a, b in zip(trained, initial))
