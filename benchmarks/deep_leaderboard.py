@@ -48,6 +48,12 @@ GAE discounted by `--gamma-h` per simulated hour, decision rows only, MAPPO's cr
 
     python benchmarks/deep_leaderboard.py --route smdp --decisions 1000000 --update-reference
 
+Its ablation's departures from the contract, `--discount step` (gamma per env step) and `--rows all`
+(every robot's row of every step in the batch), each write a reference of their own
+(`deep_leaderboard_smdp_per_step`, `deep_leaderboard_smdp_all_rows`). Per-class parameters are
+`smdp_ppo`'s too (`parameters="class"`), but the trial runner's `NetworkTeam` drives every robot
+with one network, so such a run cannot be read out here yet.
+
 Training reward: `reward="value"` (docs/semi_mdp.md): a robot is paid its circuit's value at each
 delivery, so the team's summed undiscounted return per hour is the evaluation metric itself;
 the paper's `w / t` would reward short tasks quadratically instead. On the pettingzoo route,
@@ -159,6 +165,14 @@ class Settings(ScoredSettings):
     """smdp route: arenas stepped together"""
     arena_steps: int = 256
     """smdp route: env steps per arena per PPO batch (`batch` is the pettingzoo route's)"""
+    discount: str = "time"
+    """smdp route: time (gamma_h ** (tau / 3600), the contract) or step (gamma_step per env
+    step: the ablation)"""
+    gamma_step: float = 0.99
+    """smdp route with discount=step: the discount per env step"""
+    rows: str = "decisions"
+    """smdp route: decisions (decision rows only, the contract) or all (every robot's row of
+    every env step: the ablation)"""
     curve_points: int = 10
     """learning-curve evaluations after the untrained one"""
     eval_seeds: int | None = None
@@ -179,7 +193,11 @@ class Settings(ScoredSettings):
     def reference_name(self) -> str:
         # team-credit runs are the credit study's (docs/results/scenarios.md, "Own or team credit")
         name = "deep_credit" if self.credit == "team" else "deep_leaderboard"
-        return name if self.route == "pettingzoo" else f"{name}_{self.route}"
+        if self.route == "pettingzoo":
+            return name
+        # an ablation's runs share their keys with the contract's: a folder of their own
+        step = "_per_step" if self.discount == "step" else ""
+        return f"{name}_{self.route}{step}" + ("_all_rows" if self.rows == "all" else "")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -205,6 +223,13 @@ class Settings(ScoredSettings):
                 ("gamma_h", positive(self.gamma_h) and self.gamma_h <= 1, "a number in (0, 1]"),
                 ("n_envs", at_least(self.n_envs, 1), "an integer >= 1"),
                 ("arena_steps", at_least(self.arena_steps, 2), "an integer >= 2"),
+                ("discount", self.discount in ("time", "step"), "time or step"),
+                (
+                    "gamma_step",
+                    positive(self.gamma_step) and self.gamma_step <= 1,
+                    "a number in (0, 1]",
+                ),
+                ("rows", self.rows in ("decisions", "all"), "decisions or all"),
                 ("curve_points", at_least(self.curve_points, 1), "an integer >= 1"),
                 ("eval_seeds", self.eval_seeds is None or at_least(self.eval_seeds, 1), ">= 1"),
                 ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
@@ -234,7 +259,20 @@ class Settings(ScoredSettings):
     def route_text(self) -> str:
         if self.route == "pettingzoo":
             return self.route
-        return f"{self.route} (gamma_h {self.gamma_h}, {self.n_envs} x {self.arena_steps} steps)"
+        ablation = "".join(f", {k} {v}" for k, v in self.ablation())
+        return (
+            f"{self.route} (gamma_h {self.gamma_h}, {self.n_envs} x {self.arena_steps} steps"
+            f"{ablation})"
+        )
+
+    def ablation(self) -> tuple[tuple[str, Any], ...]:
+        """The smdp route's settings that depart from the contract (none: the contract's)."""
+        out: list[tuple[str, Any]] = []
+        if self.discount == "step":
+            out += [("discount", "step"), ("gamma_step", self.gamma_step)]
+        if self.rows == "all":
+            out.append(("rows", "all"))
+        return tuple(out)
 
     def ppo(self) -> tuple[tuple[str, Any], ...]:
         """The smdp route's own settings of a run (none on the pettingzoo route)."""
@@ -244,6 +282,7 @@ class Settings(ScoredSettings):
             ("gamma_h", self.gamma_h),
             ("n_envs", self.n_envs),
             ("steps_per_batch", self.arena_steps),
+            *self.ablation(),
         )
 
 
@@ -833,10 +872,16 @@ def route_sentence(s: Settings) -> str:
     """How the runs were trained, in a few words of the report."""
     if s.route == "pettingzoo":
         return f"PPO batches of {s.batch} env steps"
+    discount = (
+        f"discounted by gamma_h = {s.gamma_h} per simulated hour"
+        if s.discount == "time"
+        else f"discounted by {s.gamma_step} per env step (ablation)"
+    )
+    rows = "decision rows only" if s.rows == "decisions" else "every row (ablation)"
     return (
         "the semi-MDP contract's PPO on the TorchRL-native batched env: per-robot GAE over its "
-        f"decisions discounted by gamma_h = {s.gamma_h} per simulated hour, decision rows only, "
-        f"MAPPO's critic on state(); batches of {s.n_envs} arenas x {s.arena_steps} env steps"
+        f"decisions {discount}, {rows}, MAPPO's critic on state(); batches of {s.n_envs} "
+        f"arenas x {s.arena_steps} env steps"
     )
 
 

@@ -71,6 +71,9 @@ def test_the_smdp_route_trains_with_the_contract_ppo_and_resumes_without_trainin
     monkeypatch.setattr(torchrl_ppo, "train", refuse)
     settings = tiny(tmp_path, algorithms=("mappo",), route="smdp", n_envs=2, arena_steps=100)
     assert settings.reference_name() == "deep_leaderboard_smdp"
+    ablation = tiny(tmp_path, route="smdp", discount="step", rows="all")
+    assert ablation.reference_name() == "deep_leaderboard_smdp_per_step_all_rows"
+    assert dict(ablation.ppo())["gamma_step"] == 0.99 and dict(ablation.ppo())["rows"] == "all"
     outcome = study.run(settings)
     saved = json.loads((tmp_path / "runs" / "dahl2004__mappo__seed0.json").read_text())
     assert saved["record"]["route"] == "smdp"
@@ -123,6 +126,8 @@ def test_the_report_renders_with_no_run_saved(tmp_path: Path) -> None:
         ("gamma_h", 0.0),
         ("n_envs", 0),
         ("arena_steps", 1),
+        ("discount", "linear"),
+        ("rows", "some"),
         ("references", Path("/nonexistent/references.json")),
     ],
 )
