@@ -41,10 +41,23 @@ and their training-side episodes is the higher (a tie goes to `sampled`, the pol
 the evaluation seeds never enter that choice. The report gives both read-outs' IQMs and the chosen
 one's as the headline.
 
+`--route smdp` trains with `tavc_agents.learners.smdp_ppo` instead (the semi-MDP contract: per-robot
+GAE discounted by `--gamma-h` per simulated hour, decision rows only, MAPPO's critic on `state()`,
+`--n-envs` arenas of the TorchRL-native batched env) and writes its own reference,
+`deep_leaderboard_smdp` (the committed report stays the pettingzoo route's until a full rerun):
+
+    python benchmarks/deep_leaderboard.py --route smdp --decisions 1000000 --update-reference
+
+Its ablation's departures from the contract, `--discount step` (gamma per env step) and `--rows all`
+(every robot's row of every step in the batch), each write a reference of their own
+(`deep_leaderboard_smdp_per_step`, `deep_leaderboard_smdp_all_rows`). Per-class parameters are
+`smdp_ppo`'s too (`parameters="class"`), but the trial runner's `NetworkTeam` drives every robot
+with one network, so such a run cannot be read out here yet.
+
 Training reward: `reward="value"` (docs/semi_mdp.md): a robot is paid its circuit's value at each
 delivery, so the team's summed undiscounted return per hour is the evaluation metric itself;
-the paper's `w / t` would reward short tasks quadratically instead. Discounting is TorchRL's per
-env step (event-driven steps, about one decision each), a variance knob, as the contract says.
+the paper's `w / t` would reward short tasks quadratically instead. On the pettingzoo route,
+discounting is TorchRL's per env step (event-driven steps, about one decision each), a variance knob, as the contract says.
 
 The script is `benchmarks/deep_leaderboard.py`.
 """
@@ -81,6 +94,10 @@ from tavc_env.scenarios import SCENARIOS
 
 ALGORITHMS = ("mappo", "ippo")  # as tavc_agents.learners.torchrl_ppo.ALGORITHMS (no torch here)
 CREDITS = ("own", "team")  # as tavc_agents.learners.torchrl_ppo.CREDITS
+ROUTES = ("pettingzoo", "smdp")
+"""pettingzoo: TorchRL's PettingZooWrapper, one env step per frame, GAE per env step
+(`tavc_agents.learners.torchrl_ppo`; the committed report's); smdp: the TorchRL-native batched env
+and PPO on the semi-MDP contract (`tavc_agents.learners.smdp_ppo`)."""
 DEEP_SCENARIOS = ("dahl2004", "passing", "three_circuits", "bad_start")
 """The paper's scenario and the three with the most measured headroom."""
 CURVE_SEED = 1_000
@@ -121,7 +138,7 @@ class Settings(ScoredSettings):
     }
     recorded_fields: ClassVar = (
         "algorithms scenarios seeds decisions batch epochs curve_points eval_seeds_text "
-        "episode_text resamples seed credit choice_episodes"
+        "episode_text resamples seed credit choice_episodes route_text"
     )
 
     algorithms: tuple[str, ...] = ALGORITHMS
@@ -139,6 +156,23 @@ class Settings(ScoredSettings):
     credit: str = "own"
     """own: each robot is trained on its own deliveries; team: on the team's (the mean reward of
     the step, every robot alike)"""
+    route: str = "pettingzoo"
+    """pettingzoo (GAE per env step, every robot's row) or smdp (the semi-MDP contract: per-robot
+    GAE discounted by gamma_h per simulated hour, decision rows only, MAPPO's critic on state())"""
+    gamma_h: float = 0.1
+    """smdp route: the discount per simulated hour"""
+    n_envs: int = 16
+    """smdp route: arenas stepped together"""
+    arena_steps: int = 256
+    """smdp route: env steps per arena per PPO batch (`batch` is the pettingzoo route's)"""
+    discount: str = "time"
+    """smdp route: time (gamma_h ** (tau / 3600), the contract) or step (gamma_step per env
+    step: the ablation)"""
+    gamma_step: float = 0.99
+    """smdp route with discount=step: the discount per env step"""
+    rows: str = "decisions"
+    """smdp route: decisions (decision rows only, the contract) or all (every robot's row of
+    every env step: the ablation)"""
     curve_points: int = 10
     """learning-curve evaluations after the untrained one"""
     eval_seeds: int | None = None
@@ -158,7 +192,12 @@ class Settings(ScoredSettings):
 
     def reference_name(self) -> str:
         # team-credit runs are the credit study's (docs/results/scenarios.md, "Own or team credit")
-        return "deep_credit" if self.credit == "team" else "deep_leaderboard"
+        name = "deep_credit" if self.credit == "team" else "deep_leaderboard"
+        if self.route == "pettingzoo":
+            return name
+        # an ablation's runs share their keys with the contract's: a folder of their own
+        step = "_per_step" if self.discount == "step" else ""
+        return f"{name}_{self.route}{step}" + ("_all_rows" if self.rows == "all" else "")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -180,6 +219,17 @@ class Settings(ScoredSettings):
                 ("batch", at_least(self.batch, 2), "an integer >= 2 (env steps)"),
                 ("epochs", at_least(self.epochs, 1), "an integer >= 1"),
                 ("credit", self.credit in CREDITS, f"one of {', '.join(CREDITS)}"),
+                ("route", self.route in ROUTES, f"one of {', '.join(ROUTES)}"),
+                ("gamma_h", positive(self.gamma_h) and self.gamma_h <= 1, "a number in (0, 1]"),
+                ("n_envs", at_least(self.n_envs, 1), "an integer >= 1"),
+                ("arena_steps", at_least(self.arena_steps, 2), "an integer >= 2"),
+                ("discount", self.discount in ("time", "step"), "time or step"),
+                (
+                    "gamma_step",
+                    positive(self.gamma_step) and self.gamma_step <= 1,
+                    "a number in (0, 1]",
+                ),
+                ("rows", self.rows in ("decisions", "all"), "decisions or all"),
                 ("curve_points", at_least(self.curve_points, 1), "an integer >= 1"),
                 ("eval_seeds", self.eval_seeds is None or at_least(self.eval_seeds, 1), ">= 1"),
                 ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
@@ -205,6 +255,36 @@ class Settings(ScoredSettings):
     def episode_text(self) -> str:
         return "scenario's" if self.episode_h is None else str(float(self.episode_h))
 
+    @property
+    def route_text(self) -> str:
+        if self.route == "pettingzoo":
+            return self.route
+        ablation = "".join(f", {k} {v}" for k, v in self.ablation())
+        return (
+            f"{self.route} (gamma_h {self.gamma_h}, {self.n_envs} x {self.arena_steps} steps"
+            f"{ablation})"
+        )
+
+    def ablation(self) -> tuple[tuple[str, Any], ...]:
+        """The smdp route's settings that depart from the contract (none: the contract's)."""
+        out: list[tuple[str, Any]] = []
+        if self.discount == "step":
+            out += [("discount", "step"), ("gamma_step", self.gamma_step)]
+        if self.rows == "all":
+            out.append(("rows", "all"))
+        return tuple(out)
+
+    def ppo(self) -> tuple[tuple[str, Any], ...]:
+        """The smdp route's own settings of a run (none on the pettingzoo route)."""
+        if self.route == "pettingzoo":
+            return ()
+        return (
+            ("gamma_h", self.gamma_h),
+            ("n_envs", self.n_envs),
+            ("steps_per_batch", self.arena_steps),
+            *self.ablation(),
+        )
+
 
 @dataclass(frozen=True)
 class Run:
@@ -223,6 +303,10 @@ class Run:
     """where the final network is written (`<networks>/<key>.npz`; not part of the record)"""
     credit: str = "own"
     """whose deliveries a robot is trained on (`Settings.credit`)"""
+    route: str = "pettingzoo"
+    """the learner's route (`ROUTES`)"""
+    ppo: tuple[tuple[str, Any], ...] = ()
+    """the smdp route's settings of `smdp_ppo.PpoSettings` (`Settings.ppo`)"""
 
 
 def run_key(job: Run) -> str:
@@ -255,6 +339,8 @@ def jobs(s: Settings, networks: Path) -> list[Run]:
                             tuple(scenario.eval_seeds[:n]),
                             str(networks),
                             s.credit,
+                            s.route,
+                            s.ppo(),
                         )
                     )
     return out
@@ -295,20 +381,9 @@ def run_training(job: Run) -> dict[str, Any]:
     """Train one run, evaluate it; its network is written beside the saved runs."""
     import torch  # the `marl` extra: only a process that trains needs it
 
-    from tavc_agents.learners import torchrl_ppo
-    from tavc_env.scenarios import ScenarioEnv
-
     started, cpu0 = time.perf_counter(), time.process_time()
     torch.manual_seed(job.seed)
     torch.set_num_threads(1)  # one core per job: jobs run side by side
-    env = torchrl_ppo.make_env(
-        ScenarioEnv(
-            job.scenario, observation_mode="paper_id", reward="value", max_sim_time_s=job.episode_s
-        ),
-        job.seed,
-        REWARD_SCALE,
-        job.credit,
-    )
     curve: list[dict[str, Any]] = []
     curve_cpu = [0.0]  # CPU seconds of the curve's evaluations (not training)
 
@@ -320,9 +395,8 @@ def run_training(job: Run) -> dict[str, Any]:
             curve_cpu[0] += time.process_time() - cpu
             curve.append({"decisions": decisions, "steps": steps, "value_per_h": value})
 
-    mlp, decisions, steps = torchrl_ppo.train(
-        env, job.algorithm, job.decisions, job.batch, on_batch, epochs=job.epochs
-    )
+    train = train_smdp if job.route == "smdp" else train_pettingzoo
+    mlp, decisions, steps = train(job, on_batch)
     train_cpu = time.process_time() - cpu0 - curve_cpu[0]
     train_wall = time.perf_counter() - started
     values = [greedy_value(mlp, job.scenario, s, job.episode_s) for s in job.eval_seeds]
@@ -344,8 +418,70 @@ def run_training(job: Run) -> dict[str, Any]:
     }
 
 
-# runs saved before `credit` existed were all trained on their own deliveries
-RUNS = json_jobs(run_training, run_key, unit="run", omit=("networks",), added={"credit": "own"})
+OnBatch = Callable[[int, int, Callable[[], Mlp]], None]
+"""After each batch (and before the first): decisions and env steps so far, and the network."""
+
+
+def train_pettingzoo(job: Run, on_batch: OnBatch) -> tuple[Mlp, int, int]:
+    """The pettingzoo route: `torchrl_ppo` on TorchRL's PettingZooWrapper of the scenario."""
+    from tavc_agents.learners import torchrl_ppo
+    from tavc_env.scenarios import ScenarioEnv
+
+    env = torchrl_ppo.make_env(
+        ScenarioEnv(
+            job.scenario, observation_mode="paper_id", reward="value", max_sim_time_s=job.episode_s
+        ),
+        job.seed,
+        REWARD_SCALE,
+        job.credit,
+    )
+    return torchrl_ppo.train(
+        env, job.algorithm, job.decisions, job.batch, on_batch, epochs=job.epochs
+    )
+
+
+def train_smdp(job: Run, on_batch: OnBatch) -> tuple[Mlp, int, int]:
+    """The smdp route: `smdp_ppo` on the TorchRL-native batched env of the scenario, its
+    arenas seeded from the run's seed."""
+    import torch
+
+    from tavc_agents.learners import smdp_ppo
+    from tavc_env.adapters.torchrl_env import TorchArenaEnv
+
+    ppo = smdp_ppo.PpoSettings(
+        algorithm=job.algorithm,
+        credit=job.credit,
+        epochs=job.epochs,
+        reward_scale=REWARD_SCALE,
+        **dict(job.ppo),
+    )
+    env = TorchArenaEnv(
+        ppo.n_envs,
+        env_kwargs={"scenario": job.scenario, "reward": "value", "max_sim_time_s": job.episode_s},
+        seed=job.seed,
+        with_state=job.algorithm == "mappo",
+    )
+    untrained = smdp_ppo.make_learner(env, ppo)  # the curve's first point: the initial actor
+    on_batch(0, 0, lambda: smdp_ppo.network(untrained.actor_net))
+    torch.manual_seed(job.seed)  # training starts from the generator as it was: the same actor
+
+    def after(p: smdp_ppo.Progress, learner: smdp_ppo.Learner) -> None:
+        on_batch(p.decisions, p.steps, lambda: smdp_ppo.network(learner.actor_net))
+
+    learner, progress = smdp_ppo.train(env, ppo, job.decisions, after)
+    env.close()
+    return smdp_ppo.network(learner.actor_net), progress.decisions, progress.steps
+
+
+# runs saved before `credit` and `route` existed were all trained on their own deliveries, on the
+# pettingzoo route
+RUNS = json_jobs(
+    run_training,
+    run_key,
+    unit="run",
+    omit=("networks",),
+    added={"credit": "own", "route": "pettingzoo", "ppo": []},
+)
 
 
 # -- the read-outs: each saved network evaluated both ways, without training ---------------------------
@@ -683,8 +819,8 @@ def report(
             f"TorchRL {' and '.join(LEARNER_TEXT[a] for a in s.algorithms)}, one actor shared "
             'by every robot (`paper_id` observations), trained with `reward="value"` '
             f"({CREDIT_TEXT[s.credit]}) for "
-            f"{s.decisions:,} robot decisions per run (the same budget in every scenario; PPO "
-            f"batches of {s.batch} env steps, {s.epochs} epochs), training seeds "
+            f"{s.decisions:,} robot decisions per run (the same budget in every scenario; "
+            f"{route_sentence(s)}, {s.epochs} epochs), training seeds "
             f"0-{s.seeds - 1}. Each final network is read out two ways, without training again: "
             "**sampled**, as it was trained (each robot draws an allowed circuit from the "
             "softmax of the network's scores, from its own seeded generator: the policy streams "
@@ -730,6 +866,23 @@ def report(
     rep = Report("deep_leaderboard", "Deep MARL on the scenario suite", body, rows, summary)
     rep.figures.append((FIGURE, lambda path: draw(path, s, runs, results, refs, stay, summary)))
     return rep
+
+
+def route_sentence(s: Settings) -> str:
+    """How the runs were trained, in a few words of the report."""
+    if s.route == "pettingzoo":
+        return f"PPO batches of {s.batch} env steps"
+    discount = (
+        f"discounted by gamma_h = {s.gamma_h} per simulated hour"
+        if s.discount == "time"
+        else f"discounted by {s.gamma_step} per env step (ablation)"
+    )
+    rows = "decision rows only" if s.rows == "decisions" else "every row (ablation)"
+    return (
+        "the semi-MDP contract's PPO on the TorchRL-native batched env: per-robot GAE over its "
+        f"decisions {discount}, {rows}, MAPPO's critic on state(); batches of {s.n_envs} "
+        f"arenas x {s.arena_steps} env steps"
+    )
 
 
 def verdicts(summary: Mapping[str, Mapping[str, Any]], stay: Mapping[str, float]) -> str:

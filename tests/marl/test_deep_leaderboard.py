@@ -60,6 +60,33 @@ def test_a_tiny_run_trains_evaluates_reports_and_resumes_without_training(
     assert again.text == outcome.text
 
 
+def test_the_smdp_route_trains_with_the_contract_ppo_and_resumes_without_training(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from tavc_agents.learners import smdp_ppo, torchrl_ppo
+
+    def refuse(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("trained on the wrong route, or a saved run again")
+
+    monkeypatch.setattr(torchrl_ppo, "train", refuse)
+    settings = tiny(tmp_path, algorithms=("mappo",), route="smdp", n_envs=2, arena_steps=100)
+    assert settings.reference_name() == "deep_leaderboard_smdp"
+    ablation = tiny(tmp_path, route="smdp", discount="step", rows="all")
+    assert ablation.reference_name() == "deep_leaderboard_smdp_per_step_all_rows"
+    assert dict(ablation.ppo())["gamma_step"] == 0.99 and dict(ablation.ppo())["rows"] == "all"
+    outcome = study.run(settings)
+    saved = json.loads((tmp_path / "runs" / "dahl2004__mappo__seed0.json").read_text())
+    assert saved["record"]["route"] == "smdp"
+    assert dict(saved["record"]["ppo"])["steps_per_batch"] == 100
+    result = saved["result"]
+    assert result["decisions"] >= 300 and result["steps"] % 200 == 0
+    assert result["curve"][0]["decisions"] == 0
+    assert "semi-MDP contract's PPO" in outcome.text
+    assert "| tavc/dahl2004-v0 | mappo | 1 |" in outcome.text
+    monkeypatch.setattr(smdp_ppo, "train", refuse)
+    assert study.run(settings).text == outcome.text
+
+
 def test_team_credit_gives_every_robot_the_steps_mean_reward_and_trains(tmp_path: Path) -> None:
     from tavc_agents.learners import torchrl_ppo
     from tavc_env.scenarios import ScenarioEnv
@@ -95,6 +122,12 @@ def test_the_report_renders_with_no_run_saved(tmp_path: Path) -> None:
         ("episode_h", -1.0),
         ("max_jobs", -1),
         ("credit", "shared"),
+        ("route", "rllib"),
+        ("gamma_h", 0.0),
+        ("n_envs", 0),
+        ("arena_steps", 1),
+        ("discount", "linear"),
+        ("rows", "some"),
         ("references", Path("/nonexistent/references.json")),
     ],
 )
