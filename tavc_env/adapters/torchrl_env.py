@@ -8,8 +8,10 @@
 Each arena is built through the package's one door (`tavc_env.arena.make_env`) and seeded from one
 seed as `BatchedArenaEnv` seeds its arenas (`numpy.random.SeedSequence(seed).spawn(K)`): arena `k`
 is reset with the `k`-th child seed the first time, then continues its own generator, so the
-same seed gives the same batch of trajectories. A step reads the env's own step results and
-stacks them into preallocated arrays (a few microseconds per arena; the env's step is hundreds):
+same seed gives the same batch of trajectories. A step runs each arena through the arena part of
+the env's step (`ArenaEnv.advance_choices`) and builds every robot's entries for all arenas at once
+from the engines' arrays (`tavc_env.env.arena_arrays`, as the batched view does), with no
+per-agent dicts:
 
 - `("robot", "observation")` `(K, n, k)` float32: the env's observation vector (`paper_id` by
   default, so that a shared network tells the robots apart);
@@ -34,7 +36,7 @@ the arenas it flags are reset. Needs the `marl` extra (torch, TorchRL).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -53,7 +55,7 @@ except ImportError as exc:  # an optional extra: say which
 
 from tavc_env.adapters.batched import MAX_ENVS
 from tavc_env.arena import make_env
-from tavc_env.env import ArenaEnv
+from tavc_env.env import ArenaEnv, arena_arrays
 from tavc_env.validation import is_integer, require
 
 GROUP = "robot"
@@ -136,7 +138,6 @@ class TorchArenaEnv(EnvBase):
         self._state = np.zeros((K, int(first.state_space.shape[0])), np.float32)
         self._truncated = np.zeros((K, 1), bool)
         self._index = torch.arange(n).expand(K, n)
-        self._eye = np.eye(m, dtype=bool)
         self._seeds: list[int | None] = [None] * K
         if seed is not None:
             self.set_seed(int(seed))
@@ -186,46 +187,50 @@ class TorchArenaEnv(EnvBase):
         if tensordict is not None and "_reset" in tensordict:
             which = np.flatnonzero(tensordict["_reset"].reshape(-1).numpy()).tolist()
         for k in which:
-            env = self.envs[k]
-            obs, infos = env.reset(seed=self._seeds[k])
+            self.envs[k].reset(seed=self._seeds[k])
             self._seeds[k] = None
-            self._read(k, env, obs, infos, truncated=False)
         self._truncated[which] = False
+        self._read(which)
         return self._output(with_reward=False)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         actions = tensordict[GROUP, "action"].numpy()
-        agents = self.agents
+        bad = self._decides & ((actions < 0) | (actions >= self.n_circuits))
+        if bad.any():
+            k, i = (int(x) for x in np.argwhere(bad)[0])
+            require(
+                False,
+                f"action of robot {i} in arena {k}",
+                int(actions[k, i]),
+                f"a circuit index in [0, {self.n_circuits - 1}] (the robot must decide)",
+            )
         for k, env in enumerate(self.envs):
-            chosen = {agents[i]: int(actions[k, i]) for i in np.flatnonzero(self._decides[k])}
-            obs, rewards, _, truncations, infos = env.step(chosen)
-            truncated = bool(truncations[agents[0]])
-            self._reward[k, :, 0] = np.fromiter(rewards.values(), np.float32, len(agents))
-            self._read(k, env, obs, infos, truncated)
+            deciders = self._decides[k].nonzero()[0].tolist()
+            rewards, truncated = env.advance_choices([(i, int(actions[k, i])) for i in deciders])
+            self._reward[k, :, 0] = rewards
             self._truncated[k] = truncated
+        self._read(range(len(self.envs)))
         return self._output(with_reward=True)
 
     # -- helpers -----------------------------------------------------------------------------
-    def _read(
-        self,
-        k: int,
-        env: ArenaEnv[Any],
-        obs: Mapping[str, Any],
-        infos: Mapping[str, Mapping[str, Any]],
-        truncated: bool,
-    ) -> None:
-        """Arena `k`'s step (or reset) results into row `k` of the arrays."""
-        n = self.n_robots
-        self._obs[k] = [o["observation"] for o in obs.values()]
-        decides = np.fromiter((i["action_required"] for i in infos.values()), bool, n)
-        self._decides[k] = decides
-        completed = np.fromiter((i["task_completed"] for i in infos.values()), bool, n)
-        self._epoch[k] = decides | (truncated & completed)
-        self._elapsed[k, :, 0] = np.fromiter((i["elapsed_s"] for i in infos.values()), float, n)
-        circuits = np.fromiter((i["circuit"] for i in infos.values()), np.int64, n)
-        self._mask[k] = self._eye[circuits] | decides[:, None]
+    def _read(self, which: Sequence[int]) -> None:
+        """Arenas `which`'s step (or reset) results into their rows of the arrays, from the
+        engines' arrays (`tavc_env.env.arena_arrays`, as the batched view builds them)."""
+        which = list(which)
+        if not which:
+            return
+        envs = [self.envs[k] for k in which]
+        truncated = self._truncated[which, 0]
+        arrays = arena_arrays(envs, truncated.tolist())
+        decides = arrays["action_required"]
+        self._obs[which] = arrays["observations"]
+        self._decides[which] = decides
+        self._epoch[which] = decides | (truncated[:, None] & arrays["task_completed"])
+        self._elapsed[which, :, 0] = arrays["elapsed_s"]
+        self._mask[which] = arrays["action_mask"].astype(bool) | decides[:, :, None]
         if self.with_state:
-            self._state[k] = env.state()
+            for k, env in zip(which, envs):
+                self._state[k] = env.state()
 
     def _output(self, with_reward: bool) -> TensorDictBase:
         """The arrays as a TensorDict (copies: the collector keeps every step's)."""

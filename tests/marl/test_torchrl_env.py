@@ -113,3 +113,14 @@ def test_bad_arguments_are_refused_naming_the_value() -> None:
         TorchArenaEnv(1, env_kwargs={**KWARGS, "observation_format": "box"})
     with pytest.raises(ValueError, match="seed"):
         TorchArenaEnv(1, env_kwargs=KWARGS, seed=-1)
+
+
+def test_an_out_of_range_action_of_a_deciding_robot_is_refused_before_any_arena_moves() -> None:
+    env = TorchArenaEnv(2, env_kwargs=KWARGS, seed=0)
+    td = env.reset()
+    times = [e.sim_time_s for e in env.envs]
+    td[GROUP, "action"] = torch.zeros_like(td[GROUP, "index"])
+    td[GROUP, "action"][1, 2] = env.n_circuits  # every robot decides at reset
+    with pytest.raises(ValueError, match=r"action of robot 2 in arena 1 = 2.*\[0, 1\]"):
+        env.step(td)
+    assert [e.sim_time_s for e in env.envs] == times
