@@ -460,6 +460,14 @@ def diff_of(records: Sequence[Mapping[str, Any]]) -> list[float]:
     return [float(r["fast_share"]) - float(r["slow_share"]) for r in records]
 
 
+def trials_for_power(sd: float, effect: float) -> float:
+    """Trials for 80 % power in a two-sided 5 % test of a mean `effect` with per-trial spread `sd`
+    (inf where the effect is 0 or undefined)."""
+    if not (math.isfinite(sd) and math.isfinite(effect)) or effect == 0:
+        return math.inf
+    return float((Z_POWER * sd / abs(effect)) ** 2)
+
+
 def minimal_detectable(values: Sequence[float]) -> float:
     """The smallest mean effect that `len(values)` trials of this spread detect with 80 % power
     in a two-sided 5 % test: (z_0.975 + z_0.80) sd / sqrt(n)."""

@@ -747,18 +747,13 @@ def run_predict(s: Settings) -> Outcome:
             m, lo, hi, _ = mean_ci(diff.tolist())
             sd = float(np.std(diff, ddof=1))
             row |= {f"{name}": m, f"{name}_low": lo, f"{name}_high": hi, f"{name}_sd": sd}
-            per_trial += [
-                {
-                    "arena": a,
-                    "condition": c,
-                    "tables": name,
-                    "trial": t,
-                    "fast_minus_slow": float(v),
-                }
-                for t, v in enumerate(diff)
-            ]
+            if name == "learners":  # the prediction's trials (the fixed tables' are context)
+                per_trial += [
+                    {"arena": a, "condition": c, "trial": t, "fast_minus_slow": float(v)}
+                    for t, v in enumerate(diff)
+                ]
         row["twin_trials"] = s.twin_trials
-        needed = trials_for_power(row["learners_sd"], row["learners"])
+        needed = arena_runs.trials_for_power(row["learners_sd"], row["learners"])
         row["trials_for_80_power"] = needed
         wanted = s.max_physics if not math.isfinite(needed) else math.ceil(needed)
         row["physics_trials"] = min(max(wanted, s.min_physics), s.max_physics)
@@ -774,14 +769,6 @@ def run_predict(s: Settings) -> Outcome:
     )
     written = report.write(out, run_metadata(settings=s.recorded()))
     return Outcome(out, [out / "prediction_trials.csv", *written], body.split("## Method")[0])
-
-
-def trials_for_power(sd: float, effect: float) -> float:
-    """Trials for 80 % power in a two-sided 5 % test of a mean `effect` with per-trial spread
-    `sd`, ((z_0.975 + z_0.80) sd / effect)^2 (`benchmarks/passing.py`'s rule; inf for 0)."""
-    if not (math.isfinite(sd) and math.isfinite(effect)) or effect == 0:
-        return math.inf
-    return float((arena_runs.Z_POWER * sd / abs(effect)) ** 2)
 
 
 def prediction_body(s: Settings, rows: Sequence[Row]) -> str:
@@ -835,8 +822,11 @@ def prediction_body(s: Settings, rows: Sequence[Row]) -> str:
 
 
 def run_test(s: Settings) -> Outcome:
-    prediction = RESULTS_DIR / "twin_learners_prediction" / "prediction.json"
-    cells = read_report(prediction)["summary"]["cells"]
+    cells = read_report(s.prediction)["summary"]["cells"]
+    if s.quick:  # a smoke run: the plan's cells, a few trials each
+        cells = [
+            {**c, "physics_trials": min(int(c["physics_trials"]), s.max_physics)} for c in cells
+        ]
     most = max(int(c["physics_trials"]) for c in cells)
     jobs = [
         LogTrial(
@@ -927,7 +917,7 @@ def run_test(s: Settings) -> Outcome:
         "The twin among learners, out of sample: the physics",
         body,
         rows,
-        summary={"trials_saved": done},
+        summary={"trials_saved": done, "cells": rows},
     )
     written = report.write(s.out_dir(), provenance)
     return Outcome(s.out_dir(), written, body.split("## Method")[0])
@@ -969,6 +959,8 @@ class Settings(StudySettings):
     """convergence period, simulated hours"""
     measured_h: float = 5.0
     """measured period, simulated hours"""
+    prediction: Path = RESULTS_DIR / "twin_learners_prediction" / "prediction.json"
+    """the committed prediction whose plan the test stage runs (test)"""
     seed: int = 2026
     """the batched twin's generator: cell k of a stage draws from [seed, stage, k]"""
     quick: bool = False
@@ -1006,9 +998,13 @@ class Settings(StudySettings):
             "logs": "log_trials",
             "audit": "log_trials twin_log_trials twin_trials start_runs",
             "predict": "twin_trials min_physics max_physics",
-            "test": "",
+            "test": "prediction=prediction_name",
         }[self.stage]
         return self.recorded_of(f"stage {sizes} convergence_h measured_h seed")
+
+    @property
+    def prediction_name(self) -> str:
+        return Path(self.prediction).name
 
     def log_jobs(self) -> list[LogTrial]:
         """The logged physics trials, seed by seed across cells."""
