@@ -31,6 +31,25 @@ def test_the_stages_run_end_to_end_on_a_short_run(tmp_path: Path) -> None:
     assert study.main([*args, "--prediction", str(out / "prediction.json")]) == 0
     rows = json.loads((test / "test.json").read_text())["summary"]["cells"]
     assert [r["trials"] for r in rows] == [3] * len(cells)
+    # --interim: the report of the trials saved, none run
+    (
+        test
+        / "trials"
+        / f"{study.log_key(study.LogTrial(cells[0]['arena'], cells[0]['condition'], 2, 0.3, 0.2))}.json"
+    ).unlink()
+    interim = [
+        *args,
+        "--prediction",
+        str(out / "prediction.json"),
+        "--resume",
+        str(test),
+        "--interim",
+    ]
+    interim.remove("--out")
+    interim.remove(str(test))
+    assert study.main(interim) == 0
+    rows = json.loads((test / "test.json").read_text())["summary"]["cells"]
+    assert [r["trials"] for r in rows] == [2] + [3] * (len(cells) - 1)
 
 
 def test_logged_trials_are_the_committed_trials() -> None:
