@@ -45,7 +45,7 @@ from arena_analysis import (
     elasticity,
     seed_tables,
 )
-from tavc_agents.analysis.measures import measure
+from tavc_agents.analysis.measures import TrialMeasures, measure
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import TrialResult, env_arguments, run_trial
@@ -374,6 +374,17 @@ def trial_key(job: MapTrial) -> str:
     return f"{job.arena}__{job.condition}__{job.engine}__seed{job.seed}"
 
 
+def measures_record(m: TrialMeasures) -> dict[str, float]:
+    """The measures a trial's record keeps for the cell statistics (`cell_row`)."""
+    return {
+        "fast_share": m.fast_share,
+        "slow_share": m.slow_share,
+        "performance": m.performance,
+        "q_gap_fast": m.q_gap_fast,
+        "q_gap_slow": m.q_gap_slow,
+    }
+
+
 def run_map_trial(job: MapTrial) -> dict[str, Any]:
     """Run `job` and return its compact record: the measures of `tavc_agents.analysis.measures`."""
     allocator, params = CONDITIONS[job.condition]
@@ -394,11 +405,7 @@ def run_map_trial(job: MapTrial) -> dict[str, Any]:
     )
     m = measure(result)
     return {
-        "fast_share": m.fast_share,
-        "slow_share": m.slow_share,
-        "performance": m.performance,
-        "q_gap_fast": m.q_gap_fast,
-        "q_gap_slow": m.q_gap_slow,
+        **measures_record(m),
         "states_pct": {f"{f}:{s}": round(v, 4) for (f, s), v in sorted(m.states.items())},
         "deliveries": len(result.delivery_time_s),
         "jams": result.jams,

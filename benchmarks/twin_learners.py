@@ -186,13 +186,8 @@ def run_log_trial(job: LogTrial) -> dict[str, Any]:
         env_factory=factory,
         **env_arguments(arena_runs.ARENAS[job.arena]),
     )
-    m = measure(result)
     return {
-        "fast_share": m.fast_share,
-        "slow_share": m.slow_share,
-        "performance": m.performance,
-        "q_gap_fast": m.q_gap_fast,
-        "q_gap_slow": m.q_gap_slow,
+        **arena_runs.measures_record(measure(result)),
         "speed_classes": list(result.speed_classes),
         "values": list(result.values),
         **({"log": task_log(result)} if job.keep_log else {}),
