@@ -27,17 +27,18 @@ Tables from fixed allocations (`build_tables`) leave out what learners meet
 (`learner_tables` measures it; `benchmarks/twin_learners.py` audits it mechanism by mechanism):
 
 * **The first task.** Each robot's first task starts from the spread start allocation, before any
-  crowd has formed, so it is shorter than the steady-state cell (in `dahl2004_passing` a fast
-  robot that keeps its start circuit takes about 160 s, its cell about 230 s). A learner with the
+  crowd has formed, so it is shorter than the steady-state cells (in `dahl2004_passing` a fast
+  robot that keeps its start circuit takes 162 s; drawn from the cells, 224 s). A learner with the
   scaled initialisation takes every Q entry from its first reward, and that level barely relaxes,
   so the first task sets each robot's Q level for the whole run. Tables with first-task cells
   (`first_own_cells`, `first_switch_cells`: by the cell at decision, staying on the start circuit
   or leaving it) draw each robot's first task from them.
 * **Task times among moving learners.** Learners' crowds form and dissolve as robots come and go;
   the same (fast, slow) count on a circuit then costs other times than when it is held fixed (in
-  crowded mixed cells the fast robots' lead shrinks). Cells measured among learners, by the cell
-  at the task's decision (the point where the twin draws), replace the fixed-allocation cells
-  where learners met them often enough.
+  crowded mixed cells the fast robots' lead shrinks). Cells measured among learners, by the count
+  on the circuit at the task's decision (the moment the twin draws; conditioned so, the twin's
+  task times by composition meet the physics' among learners), replace the fixed-allocation
+  cells where learners met them often enough.
 * **Class switch costs.** A switch costs each class its own factor (`class_switch_costs`).
 
 Tables without these fields draw exactly as before (`tavc_twin_v0`'s trajectories unchanged).
