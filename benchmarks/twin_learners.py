@@ -698,7 +698,8 @@ def audit_body(
         f"{many['mean']:+.3f}; the committed 2000-trial mean lies "
         f"{(many['mean'] - d['committed_mean']) / math.hypot(se, committed_se):.1f} standard "
         "errors of the difference below it (a per-trial sd of about 0.3 leaves a 2000-trial "
-        "mean +-0.013), and a rerun of 200 trials (+0.042) is as far above.",
+        "mean +-0.013), while the +0.042 of an earlier audit's 200-trial rerun agrees with "
+        "the twin's mean: the committed +0.022 was the low draw.",
         "",
         "## Method",
         "",
