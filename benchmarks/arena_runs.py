@@ -45,7 +45,7 @@ from arena_analysis import (
     elasticity,
     seed_tables,
 )
-from tavc_agents.analysis.measures import measure
+from tavc_agents.analysis.measures import TrialMeasures, measure
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import TrialResult, env_arguments, run_trial
@@ -374,6 +374,17 @@ def trial_key(job: MapTrial) -> str:
     return f"{job.arena}__{job.condition}__{job.engine}__seed{job.seed}"
 
 
+def measures_record(m: TrialMeasures) -> dict[str, float]:
+    """The measures a trial's record keeps for the cell statistics (`cell_row`)."""
+    return {
+        "fast_share": m.fast_share,
+        "slow_share": m.slow_share,
+        "performance": m.performance,
+        "q_gap_fast": m.q_gap_fast,
+        "q_gap_slow": m.q_gap_slow,
+    }
+
+
 def run_map_trial(job: MapTrial) -> dict[str, Any]:
     """Run `job` and return its compact record: the measures of `tavc_agents.analysis.measures`."""
     allocator, params = CONDITIONS[job.condition]
@@ -394,11 +405,7 @@ def run_map_trial(job: MapTrial) -> dict[str, Any]:
     )
     m = measure(result)
     return {
-        "fast_share": m.fast_share,
-        "slow_share": m.slow_share,
-        "performance": m.performance,
-        "q_gap_fast": m.q_gap_fast,
-        "q_gap_slow": m.q_gap_slow,
+        **measures_record(m),
         "states_pct": {f"{f}:{s}": round(v, 4) for (f, s), v in sorted(m.states.items())},
         "deliveries": len(result.delivery_time_s),
         "jams": result.jams,
@@ -458,6 +465,14 @@ def _values(records: Sequence[Mapping[str, Any]], key: str) -> list[float]:
 def diff_of(records: Sequence[Mapping[str, Any]]) -> list[float]:
     """Per trial, the fast robots' share of time on the high-value circuit minus the slow ones'."""
     return [float(r["fast_share"]) - float(r["slow_share"]) for r in records]
+
+
+def trials_for_power(sd: float, effect: float) -> float:
+    """Trials for 80 % power in a two-sided 5 % test of a mean `effect` with per-trial spread `sd`
+    (inf where the effect is 0 or undefined)."""
+    if not (math.isfinite(sd) and math.isfinite(effect)) or effect == 0:
+        return math.inf
+    return float((Z_POWER * sd / abs(effect)) ** 2)
 
 
 def minimal_detectable(values: Sequence[float]) -> float:
@@ -653,21 +668,29 @@ class _Batch:
         self.robot_class = np.array([classes.index(r.speed_class) for r in config.robots])
         self.fast = np.array([r.speed_class == "fast" for r in config.robots])
         self.slow = np.array([r.speed_class == "slow" for r in config.robots])
-        # the lognormal of every cell, indexed [circuit, count vector (mixed radix), class]
+        # the lognormal of every cell, indexed [switch, circuit, count vector (mixed radix),
+        # class]: tasks after the first (switch 0, the switch cost applied on top), first tasks
         self.radix = np.cumprod([1, *(t + 1 for t in team[:-1])])
         size = int(np.prod([t + 1 for t in team]))
-        self.mu = np.zeros((self.m, size, len(classes)))
+        self.mu = np.zeros((2, self.m, size, len(classes)))
         self.sigma = np.zeros_like(self.mu)
-        for cell in tables.cells:
-            sigma = math.sqrt(math.log1p((cell.sd_s / cell.mean_s) ** 2))
-            at = (
-                cell.circuit,
-                int(np.dot(cell.counts, self.radix)),
-                classes.index(cell.robot_class),
-            )
-            self.mu[at] = math.log(cell.mean_s) - sigma * sigma / 2
-            self.sigma[at] = sigma
-        self.switch_cost = tables.switch_cost
+        self.first_mu = np.zeros_like(self.mu)
+        self.first_sigma = np.zeros_like(self.mu)
+        for mu, sigma, switch, cells in (
+            (self.mu, self.sigma, 0, tables.cells),
+            (self.first_mu, self.first_sigma, 0, tables.first_own_cells),
+            (self.first_mu, self.first_sigma, 1, tables.first_switch_cells),
+        ):
+            for cell in cells:
+                at = (
+                    switch,
+                    cell.circuit,
+                    int(np.dot(cell.counts, self.radix)),
+                    classes.index(cell.robot_class),
+                )
+                mu[at], sigma[at] = cell.lognormal()
+        self.has_first = bool(tables.first_own_cells)
+        self.switch_cost = np.array([tables.class_switch_cost(c) for c in classes])
         self.class_count = np.zeros((self.k, self.m, len(classes)), dtype=np.int64)
 
     # -- the learners ------------------------------------------------------------------------
@@ -690,14 +713,21 @@ class _Batch:
         u = self.rng.random((rows, 1)) * cdf[:, -1:]
         return np.minimum((cdf <= u).sum(axis=1), m - 1)
 
-    def draw(self, trials: np.ndarray, robots: np.ndarray, switched: np.ndarray) -> np.ndarray:
-        """Task times of `robots` in `trials` on their current circuits, crowds as they are now."""
+    def draw(
+        self, trials: np.ndarray, robots: np.ndarray, switched: np.ndarray, first: bool = False
+    ) -> np.ndarray:
+        """Task times of `robots` in `trials` on their current circuits, crowds as they are now
+        (`first`: their first tasks, from the tables' first-task cells if they have them)."""
         circuit = self.current[trials, robots]
         counts = self.class_count[trials, circuit] @ self.radix
         cls = self.robot_class[robots]
-        mu, sigma = self.mu[circuit, counts, cls], self.sigma[circuit, counts, cls]
+        if first and self.has_first:
+            at = (switched.astype(np.int64), circuit, counts, cls)
+            z = self.rng.standard_normal(len(trials))
+            return np.asarray(np.exp(self.first_mu[at] + self.first_sigma[at] * z))
+        mu, sigma = self.mu[0, circuit, counts, cls], self.sigma[0, circuit, counts, cls]
         t = np.exp(mu + sigma * self.rng.standard_normal(len(trials)))
-        return np.where(switched, t * self.switch_cost, t)
+        return np.where(switched, t * self.switch_cost[cls], t)
 
     # -- the process -------------------------------------------------------------------------
     def run(self, t0: float, t1: float) -> BatchOutcome:
@@ -721,7 +751,7 @@ class _Batch:
         self.current = chosen
         np.add.at(self.class_count, (rows, chosen.ravel(), self.robot_class[robots]), 1)
         started = np.zeros((k, n))
-        due = self.draw(rows, robots, switched.ravel()).reshape(k, n)
+        due = self.draw(rows, robots, switched.ravel(), first=True).reshape(k, n)
 
         on_high_time = np.zeros((k, n))
         state_time = np.zeros((k, int(self.fast.sum()) + 1, int(self.slow.sum()) + 1))

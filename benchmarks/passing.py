@@ -48,7 +48,7 @@ import numpy as np
 from scipy import stats
 
 import arena_runs
-from arena_runs import learner_of, measure_elasticity, run_batch
+from arena_runs import learner_of, measure_elasticity, run_batch, trials_for_power
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci, ratio_ci
 from tavc_agents.experiments.files import read_report
@@ -153,14 +153,6 @@ def _effect(row: Row, prefix: str = "") -> str:
     """A row's fast - slow with its 95 % interval (`prefix` "predicted_": the twin's)."""
     key = f"{prefix}fast_minus_slow"
     return fmt_ci(row[key], row[f"{key}_lo"], row[f"{key}_hi"], 3)
-
-
-def trials_for_power(sd: float, effect: float) -> float:
-    """Trials for 80 % power in a two-sided 5 % test of a mean `effect` with per-trial spread `sd`
-    (inf where the effect is 0 or undefined)."""
-    if not (math.isfinite(sd) and math.isfinite(effect)) or effect == 0:
-        return math.inf
-    return (arena_runs.Z_POWER * sd / abs(effect)) ** 2
 
 
 def predict_cell(

@@ -21,6 +21,34 @@ priority changes, copying), driving another engine behind the same protocol
 * time jumps to the next completion (or scheduled breakdown or repair); the robot is paid
   `w_k / t` and decides again.
 
+## Tables measured among learners
+
+Tables from fixed allocations (`build_tables`) leave out what learners meet
+(`learner_tables` measures it; `benchmarks/twin_learners.py` audits it mechanism by mechanism):
+
+* **The first task.** Each robot's first task starts from the spread start allocation, before any
+  crowd has formed, so it is shorter than the steady-state cells (in `dahl2004_passing` a fast
+  robot that keeps its start circuit takes 162 s; drawn from the cells, 224 s). A learner with the
+  scaled initialisation takes every Q entry from its first reward, and that level barely relaxes,
+  so the first task sets each robot's Q level for the whole run. Tables with first-task cells
+  (`first_own_cells`, `first_switch_cells`: by the cell at decision, staying on the start circuit
+  or leaving it) draw each robot's first task from them.
+* **Task times among moving learners.** Learners' crowds form and dissolve as robots come and go;
+  the same (fast, slow) count on a circuit then costs other times than when it is held fixed (in
+  crowded mixed cells the fast robots' lead shrinks). Cells measured among learners, by the count
+  on the circuit at the task's decision (the moment the twin draws; conditioned so, the twin's
+  task times by composition meet the physics' among learners), replace the fixed-allocation
+  cells where learners met them often enough.
+* **Class switch costs.** A switch costs each class its own factor (`class_switch_costs`).
+
+Tables without these fields draw exactly as before (`tavc_twin_v0`'s trajectories unchanged).
+
+Why they decide the direction of differentiation: near indifference a class prefers the
+high-value circuit the more, the smaller its relative time penalty there, R = t(high) / t(low)
+as the class meets it among moving learners. The paper's direction (fast robots on the
+high-value circuit) needs R_fast < R_slow, with the classes' initial Q surpluses alike; where
+R_fast > R_slow the robots differentiate in reverse.
+
 ## Distribution
 
 Task times are lognormal with the cell's mean and standard deviation (moments matched:
@@ -39,8 +67,11 @@ no physical task can (every real task takes at least its travel and service time
 * Only robots on the same circuit interfere; traffic from other circuits enters only as it was
   present in the runs that measured the tables (`tavc_env.twin.measure`).
 * Counts are per speed-class label (`Robot.speed_class`); robots of one class are alike.
-* One switch cost for every class and circuit; a repaired robot's next task counts as starting at
-  the circuit of its abandoned task.
+* One switch cost per class (for every class, unless the tables give `class_switch_costs`), for
+  every circuit; a repaired robot's next task counts as starting at the circuit of its
+  abandoned task.
+* Task times are independent draws: no serial correlation of one robot's successive tasks (the
+  passing arena's physics has a lag-1 correlation of about -0.16).
 * No space: no positions, no jams (`jammed` is always False, `jams`, `escapes` 0), no rendering
   (`render_mode` must be None); `state()` is the twin's own (circuits, phases, commitments) and
   `snapshot()` is refused. A working robot reports the phase `to_source` for its whole task.
@@ -69,10 +100,13 @@ from tavc_env.twin.engine import TaskTimeProcess, TwinTasks
 from tavc_env.twin.env import TWIN_ENV_NAME, TwinArenaEnv
 from tavc_env.twin.measure import (
     REFERENCE_PRESET,
+    ObservedTask,
     RandomRun,
-    RandomTask,
     allocation_for,
     build_tables,
+    first_tasks,
+    learner_tables,
+    logged_tasks,
     random_allocation_run,
 )
 from tavc_env.twin.tables import (
@@ -89,8 +123,8 @@ __all__ = [
     "TWIN_ENV_NAME",
     "CellKey",
     "InterferenceTables",
+    "ObservedTask",
     "RandomRun",
-    "RandomTask",
     "TaskTimeCell",
     "TaskTimeProcess",
     "TwinArenaEnv",
@@ -98,6 +132,9 @@ __all__ = [
     "allocation_for",
     "build_tables",
     "count_vectors",
+    "first_tasks",
+    "learner_tables",
+    "logged_tasks",
     "random_allocation_run",
     "required_cells",
     "team_classes",

@@ -65,13 +65,21 @@ class TaskTimeProcess:
         self.tasks = TwinTasks(config)
         self.classes = tables.classes
         self.robot_class = [tables.classes.index(r.speed_class) for r in config.robots]
-        # (circuit, counts, class index) -> (mean, mu, sigma) of the lognormal
-        self._law: dict[tuple[int, tuple[int, ...], int], tuple[float, float, float]] = {}
-        for cell in tables.cells:
-            sigma = math.sqrt(math.log1p((cell.sd_s / cell.mean_s) ** 2))
-            mu = math.log(cell.mean_s) - sigma * sigma / 2
-            key = (cell.circuit, cell.counts, tables.classes.index(cell.robot_class))
-            self._law[key] = (cell.mean_s, mu, sigma)
+        # (switch, circuit, counts, class index) -> (mean, mu, sigma) of the lognormal: a task
+        # after the first (switch False: the switch cost is applied on top), or a first task
+        self._law: dict[tuple[bool, int, tuple[int, ...], int], tuple[float, float, float]] = {}
+        self._first_law: dict[
+            tuple[bool, int, tuple[int, ...], int], tuple[float, float, float]
+        ] = {}
+        for law, switch, cells in (
+            (self._law, False, tables.cells),
+            (self._first_law, False, tables.first_own_cells),
+            (self._first_law, True, tables.first_switch_cells),
+        ):
+            for cell in cells:
+                key = (switch, cell.circuit, cell.counts, tables.classes.index(cell.robot_class))
+                law[key] = (cell.mean_s, *cell.lognormal())
+        self._switch_cost = [tables.class_switch_cost(c) for c in tables.classes]
         self._rng: np.random.Generator | None = None
         self._clear()
 
@@ -82,6 +90,7 @@ class TaskTimeProcess:
         self._token = [0] * n  # a robot's current task; older heap entries are stale
         self._duration = [0.0] * n
         self._undrawn: list[tuple[int, bool]] = []  # (robot, switch) chosen, time not drawn yet
+        self._first = [bool(self._first_law)] * n  # whose next draw is a first task's
         self._schedule: list[ScheduleEntry] = []
 
     @property
@@ -131,11 +140,14 @@ class TaskTimeProcess:
         rng = self.rng
         tasks = self.tasks
         for i, switch in self._undrawn:
-            k = tasks.circuit[i]
-            mean, mu, sigma = self._law[(k, tuple(self._committed[k]), self.robot_class[i])]
+            k, cls = tasks.circuit[i], self.robot_class[i]
+            first = self._first[i]
+            law = self._first_law if first else self._law
+            mean, mu, sigma = law[(switch and first, k, tuple(self._committed[k]), cls)]
             t = math.exp(mu + sigma * rng.standard_normal()) if sigma > 0 else mean
-            if switch:
-                t *= self.tables.switch_cost
+            if switch and not first:
+                t *= self._switch_cost[cls]
+            self._first[i] = False
             self._duration[i] = t
             heapq.heappush(self._due, (tasks.decision_time[i] + t, i, self._token[i]))
         self._undrawn = []

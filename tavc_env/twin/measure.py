@@ -28,6 +28,7 @@ tasks are switches. It drives either engine, the physics or the twin's, with the
 
 from __future__ import annotations
 
+import dataclasses
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -226,16 +227,18 @@ def build_tables(
 
 # -- checking the tables under random allocation --------------------------------------------------
 @dataclass(frozen=True)
-class RandomTask:
-    """A task of a random-allocation run: the robot's class, its circuit, the robots of each
-    class working on that circuit once everyone deciding at that moment had chosen (itself
-    included: the twin's cell), whether it switched circuits, and its time."""
+class ObservedTask:
+    """A task observed in a run (random allocation, or a learner trial's log): the robot's class,
+    its circuit, the robots of each class working on that circuit once everyone deciding at that
+    moment had chosen (itself included: the twin's cell), whether it switched circuits, its time,
+    and whether it was the robot's first task (from the start allocation)."""
 
     robot_class: str
     circuit: int
     counts: tuple[int, ...]
     switch: bool
     task_time_s: float
+    first: bool = False
 
 
 @dataclass(frozen=True)
@@ -244,7 +247,7 @@ class RandomRun:
     completed by the end, and the value delivered per robot per 10 s within the window (each
     delivery w / max w, as `tavc_env.metrics`)."""
 
-    tasks: tuple[RandomTask, ...]
+    tasks: tuple[ObservedTask, ...]
     performance: float
 
 
@@ -274,6 +277,7 @@ def random_allocation_run(
     choices = np.random.default_rng([seed, 1])
     sim.reset(np.random.default_rng(seed))
     pending: dict[int, tuple[float, tuple[int, ...], bool]] = {}
+    started: set[int] = set()  # robots whose first task has been completed
 
     def decide(robots: Sequence[int]) -> None:
         switched = {}
@@ -290,7 +294,7 @@ def random_allocation_run(
             pending[i] = (sim.time_s, counts, switched[i])
 
     decide(range(n))
-    tasks: list[RandomTask] = []
+    tasks: list[ObservedTask] = []
     delivered = 0.0
     while sim.time_s < end_s:
         out = sim.advance(end_s - sim.time_s)
@@ -300,10 +304,179 @@ def random_allocation_run(
                 delivered += values[comp.circuit] / max(values)
             if decided_s >= warmup_s:
                 tasks.append(
-                    RandomTask(
-                        robot_class[comp.robot], comp.circuit, counts, switch, comp.task_time_s
+                    ObservedTask(
+                        robot_class[comp.robot],
+                        comp.circuit,
+                        counts,
+                        switch,
+                        comp.task_time_s,
+                        comp.robot not in started,
                     )
                 )
+            started.add(comp.robot)
         decide([comp.robot for comp in out.completions])
     performance = delivered / n / (end_s - warmup_s) * 10.0
     return RandomRun(tuple(tasks), performance)
+
+
+# -- tasks of a logged trial, and tables measured among learners --------------------------------
+def logged_tasks(
+    config: ArenaConfig,
+    initial_circuits: Sequence[int],
+    changes: Sequence[Sequence[float]],
+    delivery_time_s: Sequence[float],
+    delivery_robot: Sequence[int],
+    delivery_circuit: Sequence[int],
+    delivery_task_time_s: Sequence[float],
+) -> tuple[ObservedTask, ...]:
+    """Every delivered task of a logged trial on `config`'s arena (a trial runner's record: the
+    start allocation, every change of a robot's current circuit as (time, robot, circuit), and
+    the deliveries), each with its cell at decision: the robots of each class whose current
+    circuit was the task's once every change at that moment was made (the twin's cell)."""
+    classes, _ = team_classes(config)
+    robot_class = [classes.index(r.speed_class) for r in config.robots]
+    m = config.n_circuits
+    current = [int(c) for c in initial_circuits]
+    require(
+        len(current) == config.n_robots and all(0 <= c < m for c in current),
+        "initial_circuits",
+        initial_circuits,
+        f"one circuit in [0, {m - 1}] per robot ({config.n_robots})",
+    )
+    # counts[k][circuit][class] after the k-th change (k = 0: the start)
+    counts = np.zeros((len(changes) + 1, m, len(classes)), dtype=np.int64)
+    for i, c in enumerate(current):
+        counts[0, c, robot_class[i]] += 1
+    times = np.empty(len(changes))
+    for k, (t, robot, circuit) in enumerate(changes):
+        counts[k + 1] = counts[k]
+        counts[k + 1, current[int(robot)], robot_class[int(robot)]] -= 1
+        counts[k + 1, int(circuit), robot_class[int(robot)]] += 1
+        current[int(robot)] = int(circuit)
+        times[k] = t
+    last = [int(c) for c in initial_circuits]
+    tasks = []
+    seen: set[int] = set()
+    for done, robot, circuit, task_s in sorted(
+        zip(delivery_time_s, delivery_robot, delivery_circuit, delivery_task_time_s)
+    ):
+        robot, circuit = int(robot), int(circuit)
+        decided = done - task_s
+        # the changes made at the decision (robots deciding together) count; 2 ms: a log's
+        # times rounded to 1 ms (physics decides at ticks of dt, 0.1 s or so, apart)
+        at = int(np.searchsorted(times, decided + 2e-3, side="right"))
+        tasks.append(
+            ObservedTask(
+                classes[robot_class[robot]],
+                circuit,
+                tuple(int(n) for n in counts[at, circuit]),
+                circuit != last[robot],
+                float(task_s),
+                robot not in seen,
+            )
+        )
+        seen.add(robot)
+        last[robot] = circuit
+    return tuple(tasks)
+
+
+def first_tasks(
+    config: ArenaConfig, seeds: Sequence[int], hours: float = 0.25
+) -> tuple[ObservedTask, ...]:
+    """Every robot's first task in physics runs of `config` (no breakdowns) from the start
+    allocation, each robot choosing its first circuit uniformly at random, as a learner does
+    while its Q entries are all equal (`random_allocation_run` for `hours`, one run per seed)."""
+    ok = isinstance(seeds, Sequence) and len(seeds) >= 1 and all(is_integer(s) for s in seeds)
+    require(ok, "seeds", seeds, "a non-empty sequence of integer seeds")
+    return tuple(
+        task
+        for seed in seeds
+        for task in random_allocation_run(config, int(seed), hours, 0.0).tasks
+        if task.first
+    )
+
+
+def _moments_cell(key: CellKey, sample: Sequence[float]) -> TaskTimeCell:
+    c, counts, cls = key
+    return TaskTimeCell(
+        c, counts, cls, float(np.mean(sample)), float(np.std(sample, ddof=1)), len(sample)
+    )
+
+
+def learner_tables(
+    fixed: InterferenceTables,
+    tasks: Sequence[ObservedTask],
+    starts: Sequence[ObservedTask],
+    *,
+    min_tasks: int = 20,
+    min_first: int = 5,
+    source: str = "",
+) -> InterferenceTables:
+    """The twin's tables among moving learners (see `tavc_env.twin`), from learner trials' tasks
+    (`logged_tasks`) and first tasks from the start allocation (`first_tasks`):
+
+    * cells: the learners' own-circuit tasks after their first, by the cell at decision, where a
+      cell has at least `min_tasks` of them; `fixed`'s cell (fixed allocations) elsewhere;
+    * class switch costs: per class, the learners' switch tasks' total time over their cells'
+      (these tables') total mean time;
+    * first-task cells, staying and leaving: the first tasks of `starts` by their cell, where it
+      has at least `min_first`; elsewhere the moments of all first tasks of that class and kind.
+    """
+    require(is_integer(min_tasks) and min_tasks >= 2, "min_tasks", min_tasks, "an integer >= 2")
+    require(is_integer(min_first) and min_first >= 2, "min_first", min_first, "an integer >= 2")
+    own: dict[CellKey, list[float]] = defaultdict(list)
+    for t in tasks:
+        if not (t.first or t.switch):
+            own[(t.circuit, t.counts, t.robot_class)].append(t.task_time_s)
+    cells = tuple(
+        _moments_cell(c.key, own[c.key]) if len(own.get(c.key, ())) >= min_tasks else c
+        for c in fixed.cells
+    )
+    index = {c.key: c for c in cells}
+    costs = []
+    for cls in fixed.classes:
+        paid = [
+            (t.task_time_s, index[(t.circuit, t.counts, t.robot_class)].mean_s)
+            for t in tasks
+            if t.switch and not t.first and t.robot_class == cls
+        ]
+        require(
+            len(paid) >= min_tasks,
+            f"switch tasks of class {cls!r}",
+            len(paid),
+            f"at least min_tasks = {min_tasks} (log more learner trials)",
+        )
+        costs.append(sum(t for t, _ in paid) / sum(m for _, m in paid))
+    by_cell: dict[tuple[bool, CellKey], list[float]] = defaultdict(list)
+    by_class: dict[tuple[bool, str], list[float]] = defaultdict(list)
+    for t in starts:
+        require(t.first, "starts", t, "first tasks only (ObservedTask.first)")
+        by_cell[(t.switch, (t.circuit, t.counts, t.robot_class))].append(t.task_time_s)
+        by_class[(t.switch, t.robot_class)].append(t.task_time_s)
+    first: dict[bool, list[TaskTimeCell]] = {False: [], True: []}
+    for switch in (False, True):
+        for c in fixed.cells:
+            sample = by_cell.get((switch, c.key), [])
+            if len(sample) < min_first:
+                sample = by_class.get((switch, c.robot_class), [])
+                require(
+                    len(sample) >= 2,
+                    f"first tasks of class {c.robot_class!r} ({'leaving' if switch else 'staying'})",
+                    len(sample),
+                    "at least 2 (more start runs)",
+                )
+            first[switch].append(_moments_cell(c.key, sample))
+    n_learned = sum(1 for a, b in zip(cells, fixed.cells) if a is not b)
+    return dataclasses.replace(
+        fixed,
+        cells=cells,
+        class_switch_costs=tuple(costs),
+        first_own_cells=tuple(first[False]),
+        first_switch_cells=tuple(first[True]),
+        source=source
+        or (
+            f"learners: {n_learned} of {len(cells)} cells and the class switch costs from "
+            f"{len(tasks)} learner tasks, first tasks from {len(starts)} starts; other cells: "
+            f"{fixed.source}"
+        ),
+    )

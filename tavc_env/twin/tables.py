@@ -5,6 +5,7 @@ physics by `tavc_env.twin.measure`)."""
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,6 +18,8 @@ from tavc_env.validation import is_integer, is_number, require
 CellKey = tuple[int, tuple[int, ...], str]
 """(circuit, robots of each class on it, the robot's class)"""
 _TABLE_KEYS = ("classes", "team", "n_circuits", "cells", "switch_cost")
+_LEARNER_KEYS = ("class_switch_costs", "first_own_cells", "first_switch_cells")
+"""the optional keys of tables measured among learners (`tavc_env.twin.learner_tables`)"""
 _CELL_KEYS = ("circuit", "counts", "robot_class", "mean_s", "sd_s")
 
 
@@ -113,6 +116,12 @@ class TaskTimeCell:
     def key(self) -> CellKey:
         return (self.circuit, self.counts, self.robot_class)
 
+    def lognormal(self) -> tuple[float, float]:
+        """(mu, sigma) of the lognormal with this cell's mean and sd (moments matched: see
+        `tavc_env.twin`)."""
+        sigma = math.sqrt(math.log1p((self.sd_s / self.mean_s) ** 2))
+        return math.log(self.mean_s) - sigma * sigma / 2, sigma
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "circuit": self.circuit,
@@ -137,6 +146,16 @@ class InterferenceTables:
     robot's last one (1: switching costs nothing extra). `source` says where the numbers came
     from (free text).
 
+    Tables measured among learners (`tavc_env.twin.learner_tables`) say three things more, each
+    optional (empty: the twin as it was, `tavc_twin_v0`'s draws unchanged):
+
+    * `class_switch_costs`: one switch cost per class (in `classes`' order), instead of
+      `switch_cost` for all;
+    * `first_own_cells` and `first_switch_cells`: the time of each robot's first task, from the
+      start allocation, by the cell it was decided in, when it stays on its start circuit or
+      leaves it (no switch cost applied on top: the cells are what such first tasks took). Both
+      or neither, each with every cell of `cells`.
+
     Every cell must be there, once; anything else is a ValueError naming the field.
     """
 
@@ -146,7 +165,11 @@ class InterferenceTables:
     cells: tuple[TaskTimeCell, ...]
     switch_cost: float = 1.0
     source: str = ""
+    class_switch_costs: tuple[float, ...] = ()
+    first_own_cells: tuple[TaskTimeCell, ...] = ()
+    first_switch_cells: tuple[TaskTimeCell, ...] = ()
     _index: dict[CellKey, TaskTimeCell] = field(init=False, repr=False, compare=False)
+    _first: dict[tuple[bool, CellKey], TaskTimeCell] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         classes = _sequence("classes", self.classes, "speed-class names")
@@ -180,21 +203,58 @@ class InterferenceTables:
         )
         require(isinstance(self.source, str), "source", self.source, "a string")
         team = tuple(int(t) for t in team)
-        cells = _sequence("cells", self.cells, "tavc_env.twin.TaskTimeCell")
+        costs = _sequence("class_switch_costs", self.class_switch_costs, "switch costs")
+        require(
+            len(costs) in (0, len(classes)) and all(is_number(c) and c > 0 for c in costs),
+            "class_switch_costs",
+            self.class_switch_costs,
+            f"empty, or one finite factor > 0 per class {list(classes)}",
+        )
+        cells = self._checked_cells("cells", self.cells, classes, team)
+        first_own = self._checked_cells("first_own_cells", self.first_own_cells, classes, team)
+        first_switch = self._checked_cells(
+            "first_switch_cells", self.first_switch_cells, classes, team
+        )
+        require(
+            bool(first_own) == bool(first_switch),
+            "first_own_cells",
+            f"{len(first_own)} cells (first_switch_cells: {len(first_switch)})",
+            "both first-task tables or neither",
+        )
+        object.__setattr__(self, "classes", tuple(classes))
+        object.__setattr__(self, "team", team)
+        object.__setattr__(self, "n_circuits", int(self.n_circuits))
+        object.__setattr__(self, "cells", cells)
+        object.__setattr__(self, "switch_cost", float(self.switch_cost))
+        object.__setattr__(self, "class_switch_costs", tuple(float(c) for c in costs))
+        object.__setattr__(self, "first_own_cells", first_own)
+        object.__setattr__(self, "first_switch_cells", first_switch)
+        object.__setattr__(self, "_index", {cell.key: cell for cell in cells})
+        first = {(False, c.key): c for c in first_own} | {(True, c.key): c for c in first_switch}
+        object.__setattr__(self, "_first", first)
+
+    def _checked_cells(
+        self, name: str, given: object, classes: Sequence[str], team: Sequence[int]
+    ) -> tuple[TaskTimeCell, ...]:
+        """`given` as cells, each valid for these tables; complete (every required cell once)
+        unless empty and optional (not `cells`)."""
+        cells = _sequence(name, given, "tavc_env.twin.TaskTimeCell")
+        if not cells and name != "cells":
+            return ()
         index: dict[CellKey, TaskTimeCell] = {}
         for k, cell in enumerate(cells):
             require(
-                isinstance(cell, TaskTimeCell), f"cells[{k}]", cell, "a tavc_env.twin.TaskTimeCell"
+                isinstance(cell, TaskTimeCell), f"{name}[{k}]", cell, "a tavc_env.twin.TaskTimeCell"
             )
             require(
                 cell.circuit < self.n_circuits,
-                f"cells[{k}].circuit",
+                f"{name}[{k}].circuit",
                 cell.circuit,
                 f"a circuit index in [0, {self.n_circuits - 1}]",
             )
             require(
                 cell.robot_class in classes,
-                f"cells[{k}].robot_class",
+                f"{name}[{k}].robot_class",
                 cell.robot_class,
                 f"one of the classes {list(classes)}",
             )
@@ -202,14 +262,14 @@ class InterferenceTables:
                 len(cell.counts) == len(classes)
                 and all(c <= t for c, t in zip(cell.counts, team))
                 and cell.counts[classes.index(cell.robot_class)] >= 1,
-                f"cells[{k}].counts",
+                f"{name}[{k}].counts",
                 cell.counts,
                 f"one count per class {list(classes)}, each at most the team's {list(team)}, with "
                 f"at least one robot of the cell's class {cell.robot_class!r} (the robot itself)",
             )
             require(
                 cell.key not in index,
-                f"cells[{k}]",
+                f"{name}[{k}]",
                 cell.key,
                 "one cell per (circuit, counts, class): this one repeats an earlier cell",
             )
@@ -220,17 +280,12 @@ class InterferenceTables:
         if missing:
             c, counts, cls = missing[0]
             raise ValueError(
-                f"cells = {len(cells)} cells is invalid: {len(missing)} missing, the first "
+                f"{name} = {len(cells)} cells is invalid: {len(missing)} missing, the first "
                 f"circuit {c}, counts {counts}, class {cls!r}; allowed: one cell for every "
                 f"circuit, every number of robots of each class {list(classes)} up to the team's "
                 f"{list(team)} (at least one robot) and every class present"
             )
-        object.__setattr__(self, "classes", tuple(classes))
-        object.__setattr__(self, "team", team)
-        object.__setattr__(self, "n_circuits", int(self.n_circuits))
-        object.__setattr__(self, "cells", cells)
-        object.__setattr__(self, "switch_cost", float(self.switch_cost))
-        object.__setattr__(self, "_index", index)
+        return tuple(cells)
 
     # -- reading -------------------------------------------------------------------------------
     def cell(self, circuit: int, counts: Sequence[int], robot_class: str) -> TaskTimeCell:
@@ -244,6 +299,26 @@ class InterferenceTables:
                 f"{list(self.team)} and a class with at least one robot"
             )
         return found
+
+    def first_cell(
+        self, circuit: int, counts: Sequence[int], robot_class: str, switch: bool
+    ) -> TaskTimeCell | None:
+        """The cell of a robot's first task (None: these tables have no first-task cells)."""
+        if not self._first:
+            return None
+        self.cell(circuit, counts, robot_class)  # a ValueError naming a bad key
+        return self._first[
+            (bool(switch), (int(circuit), tuple(int(c) for c in counts), robot_class))
+        ]
+
+    def class_switch_cost(self, robot_class: str) -> float:
+        """The factor on a switching task's time for a robot of `robot_class`."""
+        require(
+            robot_class in self.classes, "robot_class", robot_class, f"one of {list(self.classes)}"
+        )
+        if not self.class_switch_costs:
+            return self.switch_cost
+        return self.class_switch_costs[self.classes.index(robot_class)]
 
     def check_team(self, config: ArenaConfig) -> None:
         """A ValueError naming `tables` unless they describe `config`'s team and circuits."""
@@ -283,7 +358,7 @@ class InterferenceTables:
     # -- JSON ----------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """Plain data (JSON-serialisable); `from_dict` reads it back."""
-        return {
+        data: dict[str, Any] = {
             "classes": list(self.classes),
             "team": list(self.team),
             "n_circuits": self.n_circuits,
@@ -291,31 +366,43 @@ class InterferenceTables:
             "source": self.source,
             "cells": [cell.to_dict() for cell in self.cells],
         }
+        if self.class_switch_costs:  # absent, not empty: older tables' data (and digests) stay
+            data["class_switch_costs"] = list(self.class_switch_costs)
+        if self.first_own_cells:
+            data["first_own_cells"] = [cell.to_dict() for cell in self.first_own_cells]
+            data["first_switch_cells"] = [cell.to_dict() for cell in self.first_switch_cells]
+        return data
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> InterferenceTables:
         """Tables from `to_dict`'s data, checked (a ValueError names what is wrong)."""
         require(isinstance(data, Mapping), "tables", type(data).__name__, "a mapping (to_dict())")
-        _keys("tables", data, _TABLE_KEYS, ("source",))
-        raw_cells = _sequence("cells", data["cells"], "cell mappings")
-        cells = []
-        for k, raw in enumerate(raw_cells):
-            require(
-                isinstance(raw, Mapping), f"cells[{k}]", raw, "a mapping (TaskTimeCell.to_dict)"
-            )
-            _keys(f"cells[{k}]", raw, _CELL_KEYS, ("n_tasks",))
-            try:
-                cells.append(TaskTimeCell(**raw))
-            except ValueError as error:
-                raise ValueError(f"cells[{k}]: {error}") from None
+        _keys("tables", data, _TABLE_KEYS, ("source", *_LEARNER_KEYS))
         return cls(
             classes=data["classes"],
             team=data["team"],
             n_circuits=data["n_circuits"],
-            cells=tuple(cells),
+            cells=_cells_from("cells", data["cells"]),
             switch_cost=data["switch_cost"],
             source=data.get("source", ""),
+            class_switch_costs=data.get("class_switch_costs", ()),
+            first_own_cells=_cells_from("first_own_cells", data.get("first_own_cells", ())),
+            first_switch_cells=_cells_from(
+                "first_switch_cells", data.get("first_switch_cells", ())
+            ),
         )
+
+
+def _cells_from(name: str, given: object) -> tuple[TaskTimeCell, ...]:
+    cells = []
+    for k, raw in enumerate(_sequence(name, given, "cell mappings")):
+        require(isinstance(raw, Mapping), f"{name}[{k}]", raw, "a mapping (TaskTimeCell.to_dict)")
+        _keys(f"{name}[{k}]", raw, _CELL_KEYS, ("n_tasks",))
+        try:
+            cells.append(TaskTimeCell(**raw))
+        except ValueError as error:
+            raise ValueError(f"{name}[{k}]: {error}") from None
+    return tuple(cells)
 
 
 def _keys(

@@ -4,6 +4,7 @@ its measures in range, and agrees in distribution with the Policy-based twin run
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from typing import Any
 
@@ -16,6 +17,7 @@ from arena_runs import Learner, run_batch
 from tavc_agents.analysis.measures import measure
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import run_trial
+from tavc_agents.learners.tavc import TavcParams
 from tavc_env.config import Breakdown
 from tavc_env.twin import InterferenceTables, random_allocation_run
 
@@ -64,17 +66,44 @@ def test_same_generator_same_batch_and_measures_in_range() -> None:
     ).all()
 
 
+# tables measured among learners: first tasks from the start (staying or leaving) and a switch
+# cost per class (`tavc_env.twin.learner_tables`)
+LEARNER_TABLES = dataclasses.replace(
+    TABLES,
+    class_switch_costs=(0.9, 1.6),
+    first_own_cells=tuple(dataclasses.replace(c, mean_s=c.mean_s * 0.6) for c in TABLES.cells),
+    first_switch_cells=tuple(dataclasses.replace(c, mean_s=c.mean_s * 2.0) for c in TABLES.cells),
+)
+
+
 @pytest.mark.parametrize(
-    ("allocator", "params", "learner"),
+    ("allocator", "params", "learner", "tables"),
     [
-        ("softmax_tavc", {"temperature": 0.005, "init": "scaled"}, Learner("softmax", 0.005)),
-        ("epsilon_tavc", {"epsilon": 0.1, "init": "scaled"}, Learner("epsilon", 0.1)),
+        (
+            "softmax_tavc",
+            {"temperature": 0.005, "init": "scaled"},
+            Learner("softmax", 0.005),
+            TABLES,
+        ),
+        ("epsilon_tavc", {"epsilon": 0.1, "init": "scaled"}, Learner("epsilon", 0.1), TABLES),
+        (
+            "softmax_tavc",
+            {"temperature": 0.005, "init": "scaled"},
+            Learner("softmax", 0.005),
+            LEARNER_TABLES,
+        ),
+        (
+            "softmax_tavc",
+            {"temperature": 0.005, "init": "paper"},
+            Learner("softmax", 0.005, TavcParams(init="paper")),
+            LEARNER_TABLES,
+        ),
     ],
 )
 def test_it_agrees_with_the_policy_based_twin(
-    allocator: str, params: dict[str, object], learner: Learner
+    allocator: str, params: dict[str, object], learner: Learner, tables: InterferenceTables
 ) -> None:
-    twin = functools.partial(tavc_env.twin_parallel_env, tables=TABLES)
+    twin = functools.partial(tavc_env.twin_parallel_env, tables=tables)
     trials = [
         measure(
             run_trial(
@@ -88,7 +117,7 @@ def test_it_agrees_with_the_policy_based_twin(
         )
         for seed in range(40)
     ]
-    batch = run_batch(DAHL, TABLES, learner, 400, np.random.default_rng(1), **HOURS)
+    batch = run_batch(DAHL, tables, learner, 400, np.random.default_rng(1), **HOURS)
     pairs = {
         "fast - slow": (
             batch.fast_share - batch.slow_share,

@@ -1,0 +1,65 @@
+"""The twin among learners (`benchmarks/twin_learners.py`): its four stages end to end on a short
+run, the logged physics trials identical to the committed ones of the same seed, and the
+learner tables read back."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import twin_learners as study
+from tavc_agents.experiments.files import read_record
+from tavc_env.twin import InterferenceTables
+
+
+def test_the_stages_run_end_to_end_on_a_short_run(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    for stage in ("logs", "audit", "predict"):
+        assert study.main(["--stage", stage, "--quick", "--workers", "1", "--out", str(out)]) == 0
+    tables = InterferenceTables.from_dict(read_record(out / "tables" / "dahl2004_passing.json"))
+    assert tables.first_own_cells and len(tables.class_switch_costs) == 2
+    report = json.loads((out / "twin_learners.json").read_text())
+    sources = {r["source"] for r in report["summary"]["effects"]}
+    assert sources == {"physics (committed)", *(f"twin: {v}" for v in study.VARIANTS)}
+    assert report["summary"]["discrepancy"]["rerun_identical"]
+    prediction = json.loads((out / "prediction.json").read_text())
+    cells = prediction["summary"]["cells"]
+    assert [(c["arena"], c["condition"]) for c in cells] == list(study.OUT_OF_SAMPLE)
+    assert all(c["physics_trials"] >= 3 for c in cells)
+    test = tmp_path / "test"
+    args = ["--stage", "test", "--quick", "--workers", "1", "--out", str(test)]
+    assert study.main([*args, "--prediction", str(out / "prediction.json")]) == 0
+    rows = json.loads((test / "test.json").read_text())["summary"]["cells"]
+    assert [r["trials"] for r in rows] == [3] * len(cells)
+    # --interim: the report of the trials saved, none run
+    (
+        test
+        / "trials"
+        / f"{study.log_key(study.LogTrial(cells[0]['arena'], cells[0]['condition'], 2, 0.3, 0.2))}.json"
+    ).unlink()
+    interim = [
+        *args,
+        "--prediction",
+        str(out / "prediction.json"),
+        "--resume",
+        str(test),
+        "--interim",
+    ]
+    interim.remove("--out")
+    interim.remove(str(test))
+    assert study.main(interim) == 0
+    rows = json.loads((test / "test.json").read_text())["summary"]["cells"]
+    assert [r["trials"] for r in rows] == [2] + [3] * (len(cells) - 1)
+
+
+def test_logged_trials_are_the_committed_trials() -> None:
+    """The committed logs reproduce the committed physics trials of the same seeds exactly."""
+    logs = study.load_trials(study.RESULTS_DIR / "twin_learners" / "logs")
+    assert len(logs) == sum(study.LOG_CELLS.values())
+    for arena, condition in study.LOG_CELLS:
+        committed = study.committed_physics(arena, condition)
+        for record in logs:
+            job, result = record["record"], record["result"]
+            if (job["arena"], job["condition"]) == (arena, condition):
+                diff = float(result["fast_share"]) - float(result["slow_share"])
+                assert diff == committed[int(job["seed"])]
