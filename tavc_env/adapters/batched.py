@@ -86,6 +86,23 @@ step; a cold numba cache compiles the controller within the first)."""
 _WATCH_S = 0.25  # how often a worker checks that its parent is alive
 
 
+def require_batch(n_envs: Any, env_kwargs: Any) -> None:
+    """A ValueError unless `n_envs` is a batch size this package steps (1 to `MAX_ENVS`) and
+    `env_kwargs` None or a mapping of arguments of the arenas' `make_env`."""
+    require(
+        is_integer(n_envs) and 1 <= n_envs <= MAX_ENVS,
+        "n_envs",
+        n_envs,
+        f"an integer in [1, {MAX_ENVS}] (MAX_ENVS)",
+    )
+    require(
+        env_kwargs is None or isinstance(env_kwargs, Mapping),
+        "env_kwargs",
+        env_kwargs,
+        "None or a mapping of arguments of make_env",
+    )
+
+
 class WorkerError(RuntimeError):
     """An exception raised in a worker process; its message carries the worker's traceback."""
 
@@ -427,12 +444,7 @@ class BatchedArenaEnv:
         start_method: str | None = None,
         timeout_s: float | None = DEFAULT_TIMEOUT_S,
     ) -> None:
-        require(
-            is_integer(n_envs) and 1 <= n_envs <= MAX_ENVS,
-            "n_envs",
-            n_envs,
-            f"an integer in [1, {MAX_ENVS}] (MAX_ENVS)",
-        )
+        require_batch(n_envs, env_kwargs)
         require(
             is_integer(workers) and 0 <= workers <= min(n_envs, MAX_WORKERS),
             "workers",
@@ -445,12 +457,6 @@ class BatchedArenaEnv:
             "timeout_s",
             timeout_s,
             "None (no bound) or a finite number of seconds > 0",
-        )
-        require(
-            env_kwargs is None or isinstance(env_kwargs, Mapping),
-            "env_kwargs",
-            env_kwargs,
-            "None or a mapping of arguments of make_env",
         )
         require(callable(make_env), "make_env", make_env, "a function returning an ArenaEnv")
         methods = multiprocessing.get_all_start_methods()

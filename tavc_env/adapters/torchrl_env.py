@@ -53,7 +53,7 @@ except ImportError as exc:  # an optional extra: say which
         "(pip install 'tavc-env[marl]'; docs/tutorials/deep_marl.md for the CPU build of torch)"
     ) from exc
 
-from tavc_env.adapters.batched import MAX_ENVS
+from tavc_env.adapters.batched import require_batch
 from tavc_env.arena import make_env
 from tavc_env.env import ArenaEnv, arena_arrays
 from tavc_env.validation import is_integer, require
@@ -91,18 +91,7 @@ class TorchArenaEnv(EnvBase):
         seed: int | None = None,
         with_state: bool = True,
     ) -> None:
-        require(
-            is_integer(n_envs) and 1 <= n_envs <= MAX_ENVS,
-            "n_envs",
-            n_envs,
-            f"an integer in [1, {MAX_ENVS}] (MAX_ENVS)",
-        )
-        require(
-            env_kwargs is None or isinstance(env_kwargs, Mapping),
-            "env_kwargs",
-            env_kwargs,
-            "None or a mapping of arguments of tavc_env.arena.make_env",
-        )
+        require_batch(n_envs, env_kwargs)
         require(
             seed is None or (is_integer(seed) and seed >= 0),
             "seed",
