@@ -114,9 +114,21 @@ def test_busy_rows_do_not_affect_the_loss() -> None:
         assert same == unchanged, rows_setting
 
 
-def test_a_short_run_trains_and_its_network_drives_a_trial() -> None:
+def short_trial(team: NetworkTeam) -> Any:
+    """Five simulated minutes of `bad_start` driven by `team` (the trial runner's result)."""
     from tavc_agents.experiments.runner import run_trial
 
+    return run_trial(
+        team,
+        seed=10_000,
+        convergence_s=0.0,
+        measured_s=300.0,
+        snapshot_every_s=300.0,
+        arena={"scenario": "bad_start"},
+    )
+
+
+def test_a_short_run_trains_and_its_network_drives_a_trial() -> None:
     s = smdp_ppo.PpoSettings(n_envs=4, steps_per_batch=50, epochs=2, minibatch=64)
     torch.manual_seed(0)
     env = TorchArenaEnv(s.n_envs, env_kwargs=KWARGS, seed=0)
@@ -131,15 +143,7 @@ def test_a_short_run_trains_and_its_network_drives_a_trial() -> None:
     x = torch.eye(8)[:4]  # some paper_id-wide inputs
     logits = learner.actor_net(x, torch.zeros(4, dtype=torch.int64)).detach().numpy()
     np.testing.assert_allclose(mlp.mlps[0].scores(x.numpy()), logits, atol=1e-5)
-    result = run_trial(
-        NetworkTeam(mlp, readout="sampled"),
-        seed=10_000,
-        convergence_s=0.0,
-        measured_s=300.0,
-        snapshot_every_s=300.0,
-        arena={"scenario": "bad_start"},
-    )
-    assert result is not None
+    assert short_trial(NetworkTeam(mlp, readout="sampled")) is not None
 
 
 def test_per_class_parameters_route_each_robot_to_its_speed_class() -> None:
@@ -169,7 +173,6 @@ def test_per_class_parameters_route_each_robot_to_its_speed_class() -> None:
 def test_a_short_per_class_run_exports_a_network_set_that_drives_a_trial(tmp_path: Any) -> None:
     """Smoke size: `parameters="class"` trained a few batches, its sets saved as one file, loaded
     and run by the trial runner, each robot through its class's set as the torch actor does."""
-    from tavc_agents.experiments.runner import run_trial
     from tavc_agents.learners.network import NetworkSet
 
     s = smdp_ppo.PpoSettings(
@@ -187,15 +190,7 @@ def test_a_short_per_class_run_exports_a_network_set_that_drives_a_trial(tmp_pat
     logits = learner.actor_net(x, torch.arange(6)).detach().numpy()
     for i in range(6):
         np.testing.assert_allclose(loaded.mlp_of(i).scores(x[i].numpy()), logits[i], atol=1e-5)
-    result = run_trial(
-        NetworkTeam(path, readout="sampled"),
-        seed=10_000,
-        convergence_s=0.0,
-        measured_s=300.0,
-        snapshot_every_s=300.0,
-        arena={"scenario": "bad_start"},
-    )
-    assert result is not None
+    assert short_trial(NetworkTeam(path, readout="sampled")) is not None
 
 
 @pytest.mark.parametrize(
