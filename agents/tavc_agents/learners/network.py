@@ -187,21 +187,17 @@ class NetworkSet:
         cls, path: str | Path, *, n_inputs: int | None = None, n_outputs: int | None = None
     ) -> NetworkSet:
         """The sets saved in `path` (by `save`, or a single network's file). Their declared
-        shapes are checked first (`declared_layers`), and against `n_inputs` and `n_outputs` if
+        shapes are checked first (`declared_sets`), and against `n_inputs` and `n_outputs` if
         given, before any weight is read; a ValueError naming the file otherwise."""
         layers, group_of, n_sets = declared_sets(path)
         check_layers(layers, path, n_inputs, n_outputs)
+        names = [
+            [_member(c, k, g) for k in range(len(layers)) for c in "wb"] for g in range(n_sets)
+        ]
         with np.load(Path(path), allow_pickle=False) as data:
-            arrays = [
-                {
-                    name: data[name]
-                    for k in range(len(layers))
-                    for name in (_member("w", k, g), _member("b", k, g))
-                }
-                for g in range(n_sets)
-            ]
+            arrays = {name: data[name] for set_names in names for name in set_names}
             activation = str(data["activation"])
-        for name, array in (item for named in arrays for item in named.items()):
+        for name, array in arrays.items():
             bad = np.flatnonzero(~np.isfinite(array))
             if bad.size:
                 where = np.unravel_index(int(bad[0]), array.shape)
@@ -211,12 +207,8 @@ class NetworkSet:
                     "weights (a network trained to NaN or infinity would drive every robot alike)"
                 )
         mlps = tuple(
-            Mlp(
-                tuple(named[_member("w", k, g)] for k in range(len(layers))),
-                tuple(named[_member("b", k, g)] for k in range(len(layers))),
-                activation,
-            )
-            for g, named in enumerate(arrays)
+            Mlp(tuple(arrays[w] for w in n[0::2]), tuple(arrays[b] for b in n[1::2]), activation)
+            for n in names
         )
         return cls(mlps, group_of)
 
