@@ -220,8 +220,8 @@ MAX_LAYERS = 64
 MAX_SETS = 1024
 """The most parameter sets (and robots) a network file may declare."""
 _NETWORK = (
-    "an .npz written by NetworkSet.save (arrays w0, b0, w1, b1, ... and activation; with several "
-    "sets, set g's w0_g, b0_g, ... too and group_of, each robot's set)"
+    "an .npz written by Mlp.save or NetworkSet.save (arrays w0, b0, w1, b1, ... and activation; "
+    "with several sets, set g's w0_g, b0_g, ... too and group_of, each robot's set)"
 )
 
 
