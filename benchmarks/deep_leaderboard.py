@@ -118,6 +118,11 @@ Row = dict[str, Any]
 Network = Mlp | NetworkSet
 """A trained actor: one network for every robot, or parameter sets (`--parameters`)."""
 LEARNER_TEXT = {"mappo": "MAPPO (centralised critic)", "ippo": "IPPO (decentralised critic)"}
+ACTORS = {
+    "shared": "one actor shared by every robot",
+    "class": "one actor per speed class (ablation; one network file of the sets)",
+    "robot": "one actor per robot (ablation; one network file of the sets)",
+}
 CREDIT_TEXT = {
     "own": "each robot on its own deliveries",
     "team": "each robot on the team's: the mean reward of the step, every robot alike",
@@ -833,8 +838,8 @@ def report(
     choice = choice_seeds(s)
     body = "\n\n".join(
         [
-            f"TorchRL {' and '.join(LEARNER_TEXT[a] for a in s.algorithms)}, one actor shared "
-            'by every robot (`paper_id` observations), trained with `reward="value"` '
+            f"TorchRL {' and '.join(LEARNER_TEXT[a] for a in s.algorithms)}, {ACTORS[s.parameters]} "
+            '(`paper_id` observations), trained with `reward="value"` '
             f"({CREDIT_TEXT[s.credit]}) for "
             f"{s.decisions:,} robot decisions per run (the same budget in every scenario; "
             f"{route_sentence(s)}, {s.epochs} epochs), training seeds "
@@ -895,10 +900,9 @@ def route_sentence(s: Settings) -> str:
         else f"discounted by {s.gamma_step} per env step (ablation)"
     )
     rows = "decision rows only" if s.rows == "decisions" else "every row (ablation)"
-    sets = "" if s.parameters == "shared" else f", one actor per {s.parameters} (ablation)"
     return (
         "the semi-MDP contract's PPO on the TorchRL-native batched env: per-robot GAE over its "
-        f"decisions {discount}, {rows}{sets}, MAPPO's critic on state(); batches of {s.n_envs} "
+        f"decisions {discount}, {rows}, MAPPO's critic on state(); batches of {s.n_envs} "
         f"arenas x {s.arena_steps} env steps"
     )
 

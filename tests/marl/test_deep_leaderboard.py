@@ -104,7 +104,7 @@ def test_per_class_parameters_are_saved_as_one_set_and_read_out(tmp_path: Path) 
     for readout in ("sampled", "greedy"):
         path = tmp_path / "readouts" / f"dahl2004__mappo__seed0__{readout}.json"
         assert len(json.loads(path.read_text())["result"]["eval_values_per_h"]) == 2
-    assert "one actor per class (ablation)" in outcome.text
+    assert "one actor per speed class (ablation" in outcome.text
 
 
 def test_team_credit_gives_every_robot_the_steps_mean_reward_and_trains(tmp_path: Path) -> None:
