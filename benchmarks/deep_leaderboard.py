@@ -48,11 +48,11 @@ GAE discounted by `--gamma-h` per simulated hour, decision rows only, MAPPO's cr
 
     python benchmarks/deep_leaderboard.py --route smdp --decisions 1000000 --update-reference
 
-Its ablation's departures from the contract, `--discount step` (gamma per env step) and `--rows all`
-(every robot's row of every step in the batch), each write a reference of their own
-(`deep_leaderboard_smdp_per_step`, `deep_leaderboard_smdp_all_rows`). Per-class parameters are
-`smdp_ppo`'s too (`parameters="class"`), but the trial runner's `NetworkTeam` drives every robot
-with one network, so such a run cannot be read out here yet.
+Its ablation's departures from the contract, `--discount step` (gamma per env step), `--rows all`
+(every robot's row of every step in the batch) and `--parameters class` or `robot` (one actor per
+speed class or per robot, saved as one network file of several sets, each robot read out with its
+own), each write a reference of their own (`deep_leaderboard_smdp_per_step`,
+`deep_leaderboard_smdp_all_rows`, `deep_leaderboard_smdp_per_class`, ...).
 
 Training reward: `reward="value"` (docs/semi_mdp.md): a robot is paid its circuit's value at each
 delivery, so the team's summed undiscounted return per hour is the evaluation metric itself;
@@ -89,11 +89,12 @@ from tavc_agents.experiments.study import (
     run_study,
 )
 from tavc_agents.experiments.sweep import json_jobs, saved_results
-from tavc_agents.learners.network import Mlp, NetworkTeam
+from tavc_agents.learners.network import Mlp, NetworkSet, NetworkTeam
 from tavc_env.scenarios import SCENARIOS
 
 ALGORITHMS = ("mappo", "ippo")  # as tavc_agents.learners.torchrl_ppo.ALGORITHMS (no torch here)
 CREDITS = ("own", "team")  # as tavc_agents.learners.torchrl_ppo.CREDITS
+PARAMETERS = ("shared", "class", "robot")  # as tavc_agents.learners.smdp_ppo.PARAMETERS
 ROUTES = ("pettingzoo", "smdp")
 """pettingzoo: TorchRL's PettingZooWrapper, one env step per frame, GAE per env step
 (`tavc_agents.learners.torchrl_ppo`; the committed report's); smdp: the TorchRL-native batched env
@@ -114,7 +115,14 @@ JOBS = "runs"
 NETWORKS = "networks"
 READOUT_JOBS_DIR = "readouts"
 Row = dict[str, Any]
+Network = Mlp | NetworkSet
+"""A trained actor: one network for every robot, or parameter sets (`--parameters`)."""
 LEARNER_TEXT = {"mappo": "MAPPO (centralised critic)", "ippo": "IPPO (decentralised critic)"}
+ACTORS = {
+    "shared": "one actor shared by every robot",
+    "class": "one actor per speed class (ablation; one network file of the sets)",
+    "robot": "one actor per robot (ablation; one network file of the sets)",
+}
 CREDIT_TEXT = {
     "own": "each robot on its own deliveries",
     "team": "each robot on the team's: the mean reward of the step, every robot alike",
@@ -173,6 +181,9 @@ class Settings(ScoredSettings):
     rows: str = "decisions"
     """smdp route: decisions (decision rows only, the contract) or all (every robot's row of
     every env step: the ablation)"""
+    parameters: str = "shared"
+    """smdp route: shared (one actor for every robot, the contract's runs), class (one set per
+    speed class) or robot (one set per robot): the ablation, saved as one network file"""
     curve_points: int = 10
     """learning-curve evaluations after the untrained one"""
     eval_seeds: int | None = None
@@ -197,7 +208,9 @@ class Settings(ScoredSettings):
             return name
         # an ablation's runs share their keys with the contract's: a folder of their own
         step = "_per_step" if self.discount == "step" else ""
-        return f"{name}_{self.route}{step}" + ("_all_rows" if self.rows == "all" else "")
+        rows = "_all_rows" if self.rows == "all" else ""
+        sets = "" if self.parameters == "shared" else f"_per_{self.parameters}"
+        return f"{name}_{self.route}{step}{rows}{sets}"
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -230,6 +243,12 @@ class Settings(ScoredSettings):
                     "a number in (0, 1]",
                 ),
                 ("rows", self.rows in ("decisions", "all"), "decisions or all"),
+                (
+                    "parameters",
+                    self.parameters in PARAMETERS
+                    and (self.route == "smdp" or self.parameters == "shared"),
+                    f"one of {', '.join(PARAMETERS)} on the smdp route; shared on pettingzoo",
+                ),
                 ("curve_points", at_least(self.curve_points, 1), "an integer >= 1"),
                 ("eval_seeds", self.eval_seeds is None or at_least(self.eval_seeds, 1), ">= 1"),
                 ("episode_h", self.episode_h is None or positive(self.episode_h), "hours > 0"),
@@ -272,6 +291,8 @@ class Settings(ScoredSettings):
             out += [("discount", "step"), ("gamma_step", self.gamma_step)]
         if self.rows == "all":
             out.append(("rows", "all"))
+        if self.parameters != "shared":
+            out.append(("parameters", self.parameters))
         return tuple(out)
 
     def ppo(self) -> tuple[tuple[str, Any], ...]:
@@ -346,12 +367,12 @@ def jobs(s: Settings, networks: Path) -> list[Run]:
     return out
 
 
-def greedy_value(mlp: Mlp, scenario: str, seed: int, episode_s: float) -> float:
+def greedy_value(mlp: Network, scenario: str, seed: int, episode_s: float) -> float:
     """The network, greedy on every robot, for one episode of the scenario: value per hour."""
     return network_value(mlp, scenario, seed, episode_s, "greedy")
 
 
-def network_value(mlp: Mlp, scenario: str, seed: int, episode_s: float, readout: str) -> float:
+def network_value(mlp: Network, scenario: str, seed: int, episode_s: float, readout: str) -> float:
     """The network read out `readout` on every robot for episode `seed` of the scenario (the env
     reset with `seed`; a sampled robot draws from its policy stream of that trial): value per
     hour."""
@@ -366,7 +387,7 @@ def network_value(mlp: Mlp, scenario: str, seed: int, episode_s: float, readout:
     return value_per_hour(result)
 
 
-def greedy_choices(mlp: Mlp, scenario: str) -> list[list[int]]:
+def greedy_choices(mlp: Network, scenario: str) -> list[list[int]]:
     """Each robot's greedy circuit after serving each circuit: the network's whole policy (it sees
     its last circuit and its index only)."""
     config = SCENARIOS[scenario].config()
@@ -387,7 +408,7 @@ def run_training(job: Run) -> dict[str, Any]:
     curve: list[dict[str, Any]] = []
     curve_cpu = [0.0]  # CPU seconds of the curve's evaluations (not training)
 
-    def on_batch(decisions: int, steps: int, mlp: Callable[[], Mlp]) -> None:
+    def on_batch(decisions: int, steps: int, mlp: Callable[[], Network]) -> None:
         due = not curve or decisions // job.curve_every > curve[-1]["decisions"] // job.curve_every
         if due or decisions >= job.decisions:
             cpu = time.process_time()
@@ -418,11 +439,11 @@ def run_training(job: Run) -> dict[str, Any]:
     }
 
 
-OnBatch = Callable[[int, int, Callable[[], Mlp]], None]
+OnBatch = Callable[[int, int, Callable[[], Network]], None]
 """After each batch (and before the first): decisions and env steps so far, and the network."""
 
 
-def train_pettingzoo(job: Run, on_batch: OnBatch) -> tuple[Mlp, int, int]:
+def train_pettingzoo(job: Run, on_batch: OnBatch) -> tuple[Network, int, int]:
     """The pettingzoo route: `torchrl_ppo` on TorchRL's PettingZooWrapper of the scenario."""
     from tavc_agents.learners import torchrl_ppo
     from tavc_env.scenarios import ScenarioEnv
@@ -440,7 +461,7 @@ def train_pettingzoo(job: Run, on_batch: OnBatch) -> tuple[Mlp, int, int]:
     )
 
 
-def train_smdp(job: Run, on_batch: OnBatch) -> tuple[Mlp, int, int]:
+def train_smdp(job: Run, on_batch: OnBatch) -> tuple[Network, int, int]:
     """The smdp route: `smdp_ppo` on the TorchRL-native batched env of the scenario, its
     arenas seeded from the run's seed."""
     import torch
@@ -555,7 +576,7 @@ def run_readout(job: Readout) -> dict[str, Any]:
             f"network file {path} changed since its read-out was planned (digest "
             f"{file_digest(path)}, not {job.network}); allowed: run the study again"
         )
-    mlp = Mlp.load(path)
+    mlp = NetworkSet.load(path)
     evaluation = [
         network_value(mlp, job.scenario, seed, job.episode_s, job.readout)
         for seed in job.eval_seeds
@@ -573,7 +594,7 @@ def run_readout(job: Readout) -> dict[str, Any]:
     }
 
 
-def policy_probabilities(mlp: Mlp, scenario: str) -> list[list[list[float]]]:
+def policy_probabilities(mlp: NetworkSet, scenario: str) -> list[list[list[float]]]:
     """Each robot's probability of each circuit after serving each circuit (`[robot][last][next]`,
     the softmax of the network's scores, every circuit allowed): the policy it was trained as,
     which `sampled` follows and whose argmax `greedy` takes."""
@@ -583,7 +604,8 @@ def policy_probabilities(mlp: Mlp, scenario: str) -> list[list[list[float]]]:
     for robot in range(n):
         rows = []
         for last in range(m):
-            scores = mlp.scores(np.concatenate([np.eye(m)[last], np.eye(n)[robot]]))
+            x = np.concatenate([np.eye(m)[last], np.eye(n)[robot]])
+            scores = mlp.mlp_of(robot).scores(x)
             p = np.exp(scores - scores.max())
             rows.append([round(float(v), 6) for v in p / p.sum()])
         out.append(rows)
@@ -816,8 +838,8 @@ def report(
     choice = choice_seeds(s)
     body = "\n\n".join(
         [
-            f"TorchRL {' and '.join(LEARNER_TEXT[a] for a in s.algorithms)}, one actor shared "
-            'by every robot (`paper_id` observations), trained with `reward="value"` '
+            f"TorchRL {' and '.join(LEARNER_TEXT[a] for a in s.algorithms)}, {ACTORS[s.parameters]} "
+            '(`paper_id` observations), trained with `reward="value"` '
             f"({CREDIT_TEXT[s.credit]}) for "
             f"{s.decisions:,} robot decisions per run (the same budget in every scenario; "
             f"{route_sentence(s)}, {s.epochs} epochs), training seeds "

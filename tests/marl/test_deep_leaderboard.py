@@ -87,6 +87,26 @@ def test_the_smdp_route_trains_with_the_contract_ppo_and_resumes_without_trainin
     assert study.run(settings).text == outcome.text
 
 
+def test_per_class_parameters_are_saved_as_one_set_and_read_out(tmp_path: Path) -> None:
+    from tavc_agents.learners.network import NetworkSet
+
+    settings = tiny(
+        tmp_path, algorithms=("mappo",), route="smdp", n_envs=2, arena_steps=100, parameters="class"
+    )
+    assert settings.reference_name() == "deep_leaderboard_smdp_per_class"
+    assert dict(settings.ppo())["parameters"] == "class"
+    assert "parameters" not in dict(tiny(tmp_path, route="smdp").ppo())  # the contract's record
+    outcome = study.run(settings)
+    saved = json.loads((tmp_path / "runs" / "dahl2004__mappo__seed0.json").read_text())
+    assert dict(saved["record"]["ppo"])["parameters"] == "class"
+    network = NetworkSet.load(tmp_path / "networks" / "dahl2004__mappo__seed0.npz")
+    assert network.group_of is not None and len(network.mlps) >= 2
+    for readout in ("sampled", "greedy"):
+        path = tmp_path / "readouts" / f"dahl2004__mappo__seed0__{readout}.json"
+        assert len(json.loads(path.read_text())["result"]["eval_values_per_h"]) == 2
+    assert "one actor per speed class (ablation" in outcome.text
+
+
 def test_team_credit_gives_every_robot_the_steps_mean_reward_and_trains(tmp_path: Path) -> None:
     from tavc_agents.learners import torchrl_ppo
     from tavc_env.scenarios import ScenarioEnv
@@ -128,6 +148,8 @@ def test_the_report_renders_with_no_run_saved(tmp_path: Path) -> None:
         ("arena_steps", 1),
         ("discount", "linear"),
         ("rows", "some"),
+        ("parameters", "team"),
+        ("parameters", "class"),  # on the pettingzoo route
         ("references", Path("/nonexistent/references.json")),
     ],
 )

@@ -114,9 +114,21 @@ def test_busy_rows_do_not_affect_the_loss() -> None:
         assert same == unchanged, rows_setting
 
 
-def test_a_short_run_trains_and_its_network_drives_a_trial() -> None:
+def short_trial(team: NetworkTeam) -> Any:
+    """Five simulated minutes of `bad_start` driven by `team` (the trial runner's result)."""
     from tavc_agents.experiments.runner import run_trial
 
+    return run_trial(
+        team,
+        seed=10_000,
+        convergence_s=0.0,
+        measured_s=300.0,
+        snapshot_every_s=300.0,
+        arena={"scenario": "bad_start"},
+    )
+
+
+def test_a_short_run_trains_and_its_network_drives_a_trial() -> None:
     s = smdp_ppo.PpoSettings(n_envs=4, steps_per_batch=50, epochs=2, minibatch=64)
     torch.manual_seed(0)
     env = TorchArenaEnv(s.n_envs, env_kwargs=KWARGS, seed=0)
@@ -127,18 +139,11 @@ def test_a_short_run_trains_and_its_network_drives_a_trial() -> None:
     before = [p.detach().clone() for p in learner.actor_net.parameters()]
     assert any(float(p.abs().sum()) > 0 for p in before)
     mlp = smdp_ppo.network(learner.actor_net)
+    assert mlp.group_of is None  # shared: saved as one network, as before sets existed
     x = torch.eye(8)[:4]  # some paper_id-wide inputs
     logits = learner.actor_net(x, torch.zeros(4, dtype=torch.int64)).detach().numpy()
-    np.testing.assert_allclose(mlp.scores(x.numpy()), logits, atol=1e-5)
-    result = run_trial(
-        NetworkTeam(mlp, readout="sampled"),
-        seed=10_000,
-        convergence_s=0.0,
-        measured_s=300.0,
-        snapshot_every_s=300.0,
-        arena={"scenario": "bad_start"},
-    )
-    assert result is not None
+    np.testing.assert_allclose(mlp.mlps[0].scores(x.numpy()), logits, atol=1e-5)
+    assert short_trial(NetworkTeam(mlp, readout="sampled")) is not None
 
 
 def test_per_class_parameters_route_each_robot_to_its_speed_class() -> None:
@@ -157,8 +162,35 @@ def test_per_class_parameters_route_each_robot_to_its_speed_class() -> None:
         np.testing.assert_allclose(
             out[:, i].detach(), net.mlps[groups[i]](x[:, i]).detach(), atol=1e-6
         )
-    with pytest.raises(ValueError, match="parameters"):
-        smdp_ppo.network(net)
+    exported = smdp_ppo.network(net)
+    assert exported.group_of == tuple(groups)
+    for i in range(6):
+        np.testing.assert_allclose(
+            exported.mlp_of(i).scores(x[:, i].numpy()), out[:, i].detach(), atol=1e-5
+        )
+
+
+def test_a_short_per_class_run_exports_a_network_set_that_drives_a_trial(tmp_path: Any) -> None:
+    """Smoke size: `parameters="class"` trained a few batches, its sets saved as one file, loaded
+    and run by the trial runner, each robot through its class's set as the torch actor does."""
+    from tavc_agents.learners.network import NetworkSet
+
+    s = smdp_ppo.PpoSettings(
+        parameters="class", n_envs=2, steps_per_batch=40, epochs=1, minibatch=64
+    )
+    torch.manual_seed(0)
+    env = TorchArenaEnv(s.n_envs, env_kwargs=KWARGS, seed=0)
+    learner, progress = smdp_ppo.train(env, s, 200)
+    assert progress.decisions >= 200
+    path = smdp_ppo.network(learner.actor_net).save(tmp_path / "class.npz")
+    loaded = NetworkSet.load(path, n_inputs=8, n_outputs=2)
+    groups = smdp_ppo.groups_of(env, "class")
+    assert loaded.group_of == tuple(groups) and len(loaded.mlps) == len(set(groups)) >= 2
+    x = torch.cat([torch.eye(2)[[0, 1, 0, 1, 0, 1]], torch.eye(6)], -1)  # robot i's input
+    logits = learner.actor_net(x, torch.arange(6)).detach().numpy()
+    for i in range(6):
+        np.testing.assert_allclose(loaded.mlp_of(i).scores(x[i].numpy()), logits[i], atol=1e-5)
+    assert short_trial(NetworkTeam(path, readout="sampled")) is not None
 
 
 @pytest.mark.parametrize(

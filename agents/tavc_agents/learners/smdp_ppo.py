@@ -42,7 +42,7 @@ from torchrl.collectors import Collector
 from torchrl.modules import MLP, MaskedCategorical, ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss
 
-from tavc_agents.learners.network import Mlp
+from tavc_agents.learners.network import Mlp, NetworkSet
 from tavc_env.adapters.torchrl_env import GROUP, TorchArenaEnv
 from tavc_env.validation import is_integer, is_number, require
 
@@ -269,16 +269,15 @@ def make_learner(env: TorchArenaEnv, s: PpoSettings) -> Learner:
     return Learner(actor, critic, loss, actor_net)
 
 
-def network(actor_net: ParameterSets) -> Mlp:
-    """The shared actor as the package's numpy network (`parameters="shared"` only)."""
-    require(
-        len(actor_net.mlps) == 1,
-        "parameters",
-        f"{len(actor_net.mlps)} sets",
-        "one shared set (the trial runner's NetworkTeam drives every robot with one network)",
+def network(actor_net: ParameterSets) -> NetworkSet:
+    """The actor as the package's numpy networks: one for every robot (`shared`), or each set
+    with the set of each robot (`class`, `robot`)."""
+    mlps = tuple(
+        Mlp.from_torch([m for m in mlp.modules() if isinstance(m, torch.nn.Linear)], "tanh")
+        for mlp in actor_net.mlps
     )
-    layers = [m for m in actor_net.mlps[0].modules() if isinstance(m, torch.nn.Linear)]
-    return Mlp.from_torch(layers, activation="tanh")
+    group_of = tuple(int(g) for g in actor_net.group_of.tolist())
+    return NetworkSet(mlps, None if len(mlps) == 1 else group_of)
 
 
 # -- a batch: advantages, then the rows trained on ----------------------------------------------------

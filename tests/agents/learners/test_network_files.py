@@ -1,10 +1,13 @@
 """Network files (issue 28, item 5): read without pickle; their declared shapes are read from the
 archive members' headers and checked against a size bound and the arena before any array is
-inflated; anything that is not a network `.npz` is named in one line; `Mlp.save` is atomic."""
+inflated; anything that is not a network `.npz` is named in one line; `Mlp.save` is atomic.
+Network sets (issue 39, item 3): several parameter sets in one file, each robot driven by its own;
+a file of one network, committed before sets existed, reads and scores as it did."""
 
 from __future__ import annotations
 
 import io
+import json
 import os
 import time
 import tracemalloc
@@ -15,9 +18,19 @@ from typing import Any
 import numpy as np
 import pytest
 
+from deep_leaderboard import network_value
 from tavc_agents.learners import network
-from tavc_agents.learners.network import MAX_PARAMETERS, Mlp, NetworkTeam, declared_layers
+from tavc_agents.learners.network import (
+    MAX_PARAMETERS,
+    Mlp,
+    NetworkSet,
+    NetworkTeam,
+    declared_layers,
+    declared_sets,
+)
 from tavc_env import make_config
+
+RESULTS = Path(__file__).resolve().parents[3] / "benchmarks" / "results"
 
 AGENTS = [f"robot_{i}" for i in range(6)]  # dahl2004: 6 robots, 2 circuits -> 8 inputs, 2 outputs
 
@@ -92,7 +105,7 @@ def test_arrays_are_not_read_before_the_arena_agrees(
 ) -> None:
     path = _mlp(n_in=9).save(tmp_path / "n.npz")  # 9 inputs: 7 robots, not dahl2004's 6
     team = NetworkTeam(path)  # headers only
-    assert team.mlp is None
+    assert team.network is None
 
     def no_inflating(*args: Any, **kwargs: Any) -> Any:
         raise AssertionError("an array was read before the shapes were checked")
@@ -221,3 +234,104 @@ def test_a_zero_width_layer_is_refused(tmp_path: Path) -> None:
     )
     with pytest.raises(ValueError, match=r"declares layer 0 as \(0, 8\): a layer of zero width"):
         Mlp.load(path)
+
+
+def _two_sets() -> NetworkSet:
+    """dahl2004's six robots on two sets of random weights: robots 1, 2 and 5 on set 1."""
+    return NetworkSet((_mlp(), _shifted(_mlp())), (0, 1, 1, 0, 0, 1))
+
+
+def _shifted(mlp: Mlp) -> Mlp:
+    """`mlp` whose last layer favours circuit 1 over circuit 0 by far."""
+    return Mlp(mlp.weights, (mlp.biases[0], mlp.biases[1] + np.array([-1e3, 1e3])))
+
+
+def test_a_network_set_round_trips_and_scores_bit_for_bit(tmp_path: Path) -> None:
+    net = _two_sets()
+    path = net.save(tmp_path / "sets.npz")
+    assert declared_sets(path) == ([(16, 8), (2, 16)], (0, 1, 1, 0, 0, 1), 2)
+    again = NetworkSet.load(path, n_inputs=8, n_outputs=2)
+    assert again.group_of == net.group_of
+    x = np.random.default_rng(1).random((5, 8))
+    for a, b in zip(net.mlps, again.mlps):
+        assert np.array_equal(a.scores(x), b.scores(x))
+    for readout in ("greedy", "sampled"):
+        values = [network_value(n, "dahl2004", 10_000, 1800.0, readout) for n in (net, again)]
+        assert values[0] == values[1] > 0, (readout, values)
+    with pytest.raises(ValueError, match=r"parameter sets = 2 is invalid; allowed: one network"):
+        Mlp.load(path)
+
+
+def test_each_robot_is_driven_by_its_own_set() -> None:
+    """Set 1 prefers circuit 1 by 2000 in its scores, set 0 does not: a robot on set 1 that went
+    through set 0 would choose otherwise."""
+    net = _two_sets()
+    robots = NetworkTeam(net).policies(AGENTS, make_config("dahl2004"))
+    every = np.ones(2, np.int8)
+    for i, agent in enumerate(AGENTS):
+        robots[agent].reset(np.random.default_rng(0), 2)
+        x = np.concatenate([np.eye(2)[0], np.eye(6)[i]])
+        own = int(np.argmax(net.mlp_of(i).scores(x)))
+        assert robots[agent].act(np.eye(2)[0], every) == own
+    first = [int(np.argmax(net.mlps[0].scores(np.r_[1.0, 0.0, np.eye(6)[i]]))) for i in range(6)]
+    assert first != [1] * 6  # set 0 alone would not send robots 1, 2 and 5 to circuit 1
+    chosen = [robots[a].act(np.eye(2)[0], every) for a in AGENTS]
+    assert [chosen[i] for i in (1, 2, 5)] == [1, 1, 1]
+
+
+@pytest.mark.parametrize(
+    ("folder", "run", "readout"),
+    [
+        ("deep_leaderboard", "dahl2004__mappo__seed0", "greedy"),
+        ("deep_leaderboard_smdp", "bad_start__mappo__seed0", "sampled"),
+    ],
+)
+def test_a_committed_single_network_file_scores_as_its_committed_readout(
+    folder: str, run: str, readout: str
+) -> None:
+    """A network saved before sets existed loads as one set for every robot, and its first
+    evaluation episode gives the value its committed read-out recorded, bit for bit."""
+    path = RESULTS / folder / "networks" / f"{run}.npz"
+    saved = json.loads((RESULTS / folder / "readouts" / f"{run}__{readout}.json").read_text())
+    net = NetworkSet.load(path)
+    assert net.group_of is None and len(net.mlps) == 1
+    record = saved["record"]
+    seed, episode_s = record["eval_seeds"][0], record["episode_s"]
+    value = network_value(net, record["scenario"], seed, episode_s, readout)
+    assert value == saved["result"]["eval_values_per_h"][0]
+
+
+def test_a_set_file_is_refused_naming_what_is_wrong(tmp_path: Path) -> None:
+    net = _two_sets()
+    arrays = {f"w{k}": w for k, w in enumerate(net.mlps[0].weights)}
+    arrays |= {f"b{k}": b for k, b in enumerate(net.mlps[0].biases)}
+    arrays |= {f"w{k}_1": w for k, w in enumerate(net.mlps[1].weights)}
+    arrays |= {f"b{k}_1": b for k, b in enumerate(net.mlps[1].biases)}
+
+    def write(name: str, **changes: Any) -> Path:
+        path = tmp_path / name
+        np.savez(
+            path, **{"activation": "tanh", "group_of": np.array(net.group_of), **arrays, **changes}
+        )
+        return path
+
+    with pytest.raises(ValueError, match=r"routes robot 3 to set 2: group_of\[3\] = 2 names no"):
+        NetworkSet.load(write("unknown.npz", group_of=np.array([0, 1, 1, 2, 0, 1])))
+    w1 = net.mlps[1].weights[1].copy()
+    w1[0, 2] = np.nan
+    with pytest.raises(ValueError, match=r"w1_1\[0, 2\] = nan .*not finite\); allowed: finite"):
+        NetworkSet.load(write("nan.npz", w1_1=w1))
+    with pytest.raises(ValueError, match=r"declares layer 0 of set 1 as \(4, 8\), not set 0's"):
+        NetworkSet.load(write("shapes.npz", w0_1=np.zeros((4, 8)), b0_1=np.zeros(4)))
+    path = tmp_path / "no_group_of.npz"
+    np.savez(path, activation="tanh", **arrays)
+    with pytest.raises(ValueError, match="holds 2 sets and no group_of"):
+        declared_layers(path)
+    short = write("short.npz", group_of=np.array([0, 1, 1, 0, 1]))
+    team = NetworkTeam(short)
+    with pytest.raises(
+        ValueError, match=r"short\.npz: robots in group_of = 5 is invalid; allowed: 6, the arena's"
+    ):
+        team.policies(AGENTS, make_config("dahl2004"))
+    with pytest.raises(ValueError, match=r"group_of\[2\] = 3 is invalid; allowed: a set with"):
+        NetworkSet(net.mlps, (0, 1, 3, 0, 0, 1))
