@@ -26,7 +26,7 @@ from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.registry import REGISTRY
 from tavc_agents.experiments.runner import TrialResult, env_arguments, run_trial
 from tavc_agents.experiments.sweep import SweepError, TrialSpec, run_sweep
-from tavc_agents.learners.network import READOUTS, declared_layers
+from tavc_agents.learners.network import READOUTS, declared_sets
 from tavc_agents.model import CompletionModel, load_model
 from tavc_agents.policy import Policy
 from tavc_env.observations import OBSERVATION_MODES
@@ -392,7 +392,7 @@ def _runner(
     if isinstance(agent, Path) or (isinstance(agent, str) and agent.endswith(".npz")):
         path = Path(agent)
         try:
-            layers = declared_layers(path)
+            layers, group_of, _ = declared_sets(path)
         except (OSError, ValueError) as error:
             raise EvaluationError(f"network {path}: {error}") from error
         for name in names:
@@ -403,6 +403,11 @@ def _runner(
                     f"network {path} takes {layers[0][1]} inputs and gives {layers[-1][0]} "
                     f"scores; scenario {name!r} needs {inputs} inputs (paper_id) and "
                     f"{config.n_circuits} scores: it was trained for another arena"
+                )
+            if group_of is not None and len(group_of) != config.n_robots:
+                raise EvaluationError(
+                    f"network {path} routes {len(group_of)} robots to its parameter sets; "
+                    f"scenario {name!r} has {config.n_robots}: it was trained for another arena"
                 )
         kwargs = {"weights": str(path), "readout": readout}
         return "network", path.stem, functools.partial(_run_named, "network", kwargs)

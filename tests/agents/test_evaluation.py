@@ -18,7 +18,7 @@ import tavc_agents
 from tavc_agents.allocators.baselines import StayAllocator
 from tavc_agents.evaluation import EvaluationError, evaluate, read_row
 from tavc_agents.experiments.runner import run_trial
-from tavc_agents.learners.network import Mlp
+from tavc_agents.learners.network import Mlp, NetworkSet
 from tavc_agents.learners.tavc import softmax_tavc
 from tavc_env import RecordEpisodeStatistics
 from tavc_env.scenarios import SCENARIOS, ScenarioEnv
@@ -138,6 +138,20 @@ def test_a_network_for_another_arena_is_refused_before_any_episode(tmp_path: Pat
     with pytest.raises(EvaluationError, match="trained for another arena"):
         evaluate(path, "dahl2004", seeds=1)
 
+
+
+def test_a_network_set_for_another_team_size_is_refused_before_any_episode(
+    tmp_path: Path,
+) -> None:
+    rng = np.random.default_rng(0)
+    # dahl2004's shapes (8 inputs: 2 circuits + 6 robots; 2 scores), but sets for 5 robots
+    mlps = tuple(
+        Mlp([rng.normal(size=(4, 8)), rng.normal(size=(2, 4))], [np.zeros(4), np.zeros(2)])
+        for _ in range(2)
+    )
+    path = NetworkSet(mlps, (0, 0, 1, 1, 1)).save(tmp_path / "five.npz")
+    with pytest.raises(EvaluationError, match=r"routes 5 robots .* has 6: it was trained for"):
+        evaluate(path, "dahl2004", seeds=1)
 
 LEADERBOARD = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "leaderboard"
 
