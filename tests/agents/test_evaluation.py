@@ -139,7 +139,6 @@ def test_a_network_for_another_arena_is_refused_before_any_episode(tmp_path: Pat
         evaluate(path, "dahl2004", seeds=1)
 
 
-
 def test_a_network_set_for_another_team_size_is_refused_before_any_episode(
     tmp_path: Path,
 ) -> None:
@@ -152,6 +151,7 @@ def test_a_network_set_for_another_team_size_is_refused_before_any_episode(
     path = NetworkSet(mlps, (0, 0, 1, 1, 1)).save(tmp_path / "five.npz")
     with pytest.raises(EvaluationError, match=r"routes 5 robots .* has 6: it was trained for"):
         evaluate(path, "dahl2004", seeds=1)
+
 
 LEADERBOARD = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "leaderboard"
 
