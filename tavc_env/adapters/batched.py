@@ -103,6 +103,20 @@ def require_batch(n_envs: Any, env_kwargs: Any) -> None:
     )
 
 
+def require_circuits(actions: np.ndarray, deciding: np.ndarray, n_circuits: int) -> None:
+    """A ValueError naming the first entry of `actions` `(N, n)` of a robot that must decide
+    (`deciding`) that is not a circuit index (the other entries are not read)."""
+    bad = deciding & ((actions < 0) | (actions >= n_circuits))
+    if bad.any():
+        e, i = (int(x) for x in np.argwhere(bad)[0])
+        require(
+            False,
+            f"actions[{e}, {i}]",
+            int(actions[e, i]),
+            f"a circuit index in [0, {n_circuits - 1}] (robot {i} of arena {e} must decide)",
+        )
+
+
 class WorkerError(RuntimeError):
     """An exception raised in a worker process; its message carries the worker's traceback."""
 
@@ -608,16 +622,7 @@ class BatchedArenaEnv:
             f"array of shape {array.shape} and dtype {array.dtype}",
             f"an integer array of shape {shape}",
         )
-        m = self.n_circuits
-        bad = deciding & ((array < 0) | (array >= m))
-        if bad.any():
-            e, i = (int(x) for x in np.argwhere(bad)[0])
-            require(
-                False,
-                f"actions[{e}, {i}]",
-                int(array[e, i]),
-                f"a circuit index in [0, {m - 1}] (robot {i} of arena {e} must decide)",
-            )
+        require_circuits(array, deciding, self.n_circuits)
         return array.astype(np.int64)
 
 

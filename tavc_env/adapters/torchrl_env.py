@@ -53,7 +53,7 @@ except ImportError as exc:  # an optional extra: say which
         "(pip install 'tavc-env[marl]'; docs/tutorials/deep_marl.md for the CPU build of torch)"
     ) from exc
 
-from tavc_env.adapters.batched import require_batch
+from tavc_env.adapters.batched import require_batch, require_circuits
 from tavc_env.arena import make_env
 from tavc_env.env import ArenaEnv, arena_arrays
 from tavc_env.validation import is_integer, require
@@ -184,15 +184,7 @@ class TorchArenaEnv(EnvBase):
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         actions = tensordict[GROUP, "action"].numpy()
-        bad = self._decides & ((actions < 0) | (actions >= self.n_circuits))
-        if bad.any():
-            k, i = (int(x) for x in np.argwhere(bad)[0])
-            require(
-                False,
-                f"action of robot {i} in arena {k}",
-                int(actions[k, i]),
-                f"a circuit index in [0, {self.n_circuits - 1}] (the robot must decide)",
-            )
+        require_circuits(actions, self._decides, self.n_circuits)
         for k, env in enumerate(self.envs):
             deciders = self._decides[k].nonzero()[0].tolist()
             rewards, truncated = env.advance_choices([(i, int(actions[k, i])) for i in deciders])

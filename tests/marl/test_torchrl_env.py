@@ -121,6 +121,6 @@ def test_an_out_of_range_action_of_a_deciding_robot_is_refused_before_any_arena_
     times = [e.sim_time_s for e in env.envs]
     td[GROUP, "action"] = torch.zeros_like(td[GROUP, "index"])
     td[GROUP, "action"][1, 2] = env.n_circuits  # every robot decides at reset
-    with pytest.raises(ValueError, match=r"action of robot 2 in arena 1 = 2.*\[0, 1\]"):
+    with pytest.raises(ValueError, match=r"actions\[1, 2\] = 2.*\[0, 1\]"):
         env.step(td)
     assert [e.sim_time_s for e in env.envs] == times
