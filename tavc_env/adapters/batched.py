@@ -117,6 +117,29 @@ def require_circuits(actions: np.ndarray, deciding: np.ndarray, n_circuits: int)
         )
 
 
+def arena_seeds(seed: int | None, n_envs: int) -> list[int]:
+    """One reset seed per arena of a batch, spawned from `seed` (`numpy.random.SeedSequence(seed)
+    .spawn`; None: fresh entropy), so the same seed gives the same arenas however they are split."""
+    children = np.random.SeedSequence(seed).spawn(n_envs)
+    return [int(child.generate_state(1)[0]) for child in children]
+
+
+def advance_arenas(
+    envs: Sequence[ArenaEnv[Any]], actions: np.ndarray, deciding: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each arena's step (`ArenaEnv.advance_choices`) with the actions `(K, n)` of its robots that
+    must decide (`deciding`, `(K, n)`; unchecked, the caller checked them); returns the rewards
+    `(K, n)` and whether each arena's episode was truncated `(K,)`. The step's observations,
+    masks and infos are then `arena_arrays`."""
+    rewards = np.zeros(deciding.shape)
+    truncated = np.zeros(len(envs), bool)
+    for e, env in enumerate(envs):
+        row = actions[e]
+        choices = [(i, int(row[i])) for i in deciding[e].nonzero()[0].tolist()]
+        rewards[e], truncated[e] = env.advance_choices(choices)
+    return rewards, truncated
+
+
 class WorkerError(RuntimeError):
     """An exception raised in a worker process; its message carries the worker's traceback."""
 
@@ -168,12 +191,7 @@ class ArenaGroup:
 
     def step(self, actions: np.ndarray) -> Arrays:
         count = len(self.envs)
-        rewards = np.zeros((count, len(self.agents)))
-        truncated = np.zeros(count, bool)
-        for e, (env, deciding) in enumerate(zip(self.envs, self._deciding)):
-            row = actions[e]
-            choices = [(i, int(row[i])) for i in deciding.nonzero()[0].tolist()]
-            rewards[e], truncated[e] = env.advance_choices(choices)
+        rewards, truncated = advance_arenas(self.envs, actions, self._deciding)
         out: Arrays = arena_arrays(self.envs, truncated.tolist())
         ended = truncated.nonzero()[0].tolist()
         if ended:  # same-step autoreset; only the finished arenas' rows travel (most steps none)
@@ -533,10 +551,7 @@ class BatchedArenaEnv:
         )
         seeds: list[int | None] = [None] * self.n_envs
         if seed is not None or self._deciding is None:
-            children = np.random.SeedSequence(None if seed is None else int(seed)).spawn(
-                self.n_envs
-            )
-            seeds = [int(child.generate_state(1)[0]) for child in children]
+            seeds = list(arena_seeds(None if seed is None else int(seed), self.n_envs))
         out, _ = self._run("reset", [seeds[a:b] for a, b in self._spans])
         self._deciding = out["action_required"].copy()  # the caller may write to its own
         observations = out.pop("observations")

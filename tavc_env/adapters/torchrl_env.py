@@ -53,7 +53,12 @@ except ImportError as exc:  # an optional extra: say which
         "(pip install 'tavc-env[marl]'; docs/tutorials/deep_marl.md for the CPU build of torch)"
     ) from exc
 
-from tavc_env.adapters.batched import require_batch, require_circuits
+from tavc_env.adapters.batched import (
+    advance_arenas,
+    arena_seeds,
+    require_batch,
+    require_circuits,
+)
 from tavc_env.arena import make_env
 from tavc_env.env import ArenaEnv, arena_arrays
 from tavc_env.validation import is_integer, require
@@ -168,8 +173,7 @@ class TorchArenaEnv(EnvBase):
     def _set_seed(self, seed: int | None) -> None:
         """Arena `k`'s next reset uses the `k`-th seed spawned from `seed` (as
         `BatchedArenaEnv.reset(seed)`); later resets continue each arena's generator."""
-        children = np.random.SeedSequence(seed).spawn(len(self.envs))
-        self._seeds = [int(child.generate_state(1)[0]) for child in children]
+        self._seeds = list(arena_seeds(seed, len(self.envs)))
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs: Any) -> TensorDictBase:
         which = range(len(self.envs))
@@ -185,11 +189,9 @@ class TorchArenaEnv(EnvBase):
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         actions = tensordict[GROUP, "action"].numpy()
         require_circuits(actions, self._decides, self.n_circuits)
-        for k, env in enumerate(self.envs):
-            deciders = self._decides[k].nonzero()[0].tolist()
-            rewards, truncated = env.advance_choices([(i, int(actions[k, i])) for i in deciders])
-            self._reward[k, :, 0] = rewards
-            self._truncated[k] = truncated
+        rewards, truncated = advance_arenas(self.envs, actions, self._decides)
+        self._reward[:, :, 0] = rewards
+        self._truncated[:, 0] = truncated
         self._read(range(len(self.envs)))
         return self._output(with_reward=True)
 
