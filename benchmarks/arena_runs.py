@@ -782,7 +782,7 @@ class _Batch:
                 first = pending[active, robot]
                 if first.any():
                     a, r = active[first], robot[first]
-                    level = reward[first] / (1.0 - p.gamma) * (1.0 + p.optimism)
+                    level = p.scaled_level(reward[first])
                     jitter = rng.uniform(-p.noise, p.noise, size=(a.size, m, m))
                     q[a, r] = level[:, None, None] * (1.0 + jitter)
                     pending[a, r] = False

@@ -311,7 +311,7 @@ def q_levels(
     ):  # in time order: each robot's first delivery first
         if robot not in start:
             reward = values[circuit] / (t * arena_runs.REWARD_UNIT)
-            start[robot] = reward / (1.0 - params.gamma) * (1.0 + params.optimism)
+            start[robot] = params.scaled_level(reward)
     late = [q for t, q in log["q"] if t <= at_h * 3600.0 + 1e-6][-1]
     out = {}
     for cls in sorted(set(classes)):

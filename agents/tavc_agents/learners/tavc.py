@@ -54,6 +54,12 @@ class TavcParams:
             if not ok:
                 raise ValueError(f"{name} = {getattr(self, name)!r} is invalid; allowed: {allowed}")
 
+    def scaled_level(self, reward: Any) -> Any:
+        """The level the `scaled` initialisation gives every Q entry from a first reward (a
+        number or an array of them): its return at that rate, r / (1 - gamma), times
+        (1 + optimism)."""
+        return reward / (1.0 - self.gamma) * (1.0 + self.optimism)
+
 
 class TavcLearner:
     """One robot's TAVC Q-learner (implements `tavc_agents.policy.Policy`)."""
@@ -101,7 +107,7 @@ class TavcLearner:
     ) -> None:
         p = self.params
         if self._scaled_pending:
-            level = reward / (1.0 - p.gamma) * (1.0 + p.optimism)
+            level = p.scaled_level(reward)
             jitter = generator(self._rng, self).uniform(-p.noise, p.noise, size=self.q.shape)
             self.q = level * (1.0 + jitter)
             self._scaled_pending = False
