@@ -69,6 +69,7 @@ from tavc_env.twin import (
     first_tasks,
     learner_tables,
     logged_tasks,
+    switch_cost,
 )
 
 Row = dict[str, Any]
@@ -265,16 +266,8 @@ def _own(task: ObservedTask, cls: str) -> bool:
 
 
 def switch_costs(tasks: Sequence[ObservedTask], tables: InterferenceTables) -> dict[str, float]:
-    """Per class the switch tasks' (after the first) total time over their cells' (`tables`)."""
-    out = {}
-    for cls in tables.classes:
-        paid = [
-            (t.task_time_s, tables.cell(t.circuit, t.counts, cls).mean_s)
-            for t in tasks
-            if t.robot_class == cls and t.switch and not t.first
-        ]
-        out[cls] = sum(a for a, _ in paid) / sum(b for _, b in paid) if paid else math.nan
-    return out
+    """Per class what switching costs (`tavc_env.twin.switch_cost` against `tables`)."""
+    return {cls: switch_cost(tasks, tables, cls)[0] for cls in tables.classes}
 
 
 def serial_correlation(

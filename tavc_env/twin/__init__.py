@@ -108,6 +108,7 @@ from tavc_env.twin.measure import (
     learner_tables,
     logged_tasks,
     random_allocation_run,
+    switch_cost,
 )
 from tavc_env.twin.tables import (
     CellKey,
@@ -137,6 +138,7 @@ __all__ = [
     "logged_tasks",
     "random_allocation_run",
     "required_cells",
+    "switch_cost",
     "team_classes",
     "twin_parallel_env",
 ]

@@ -29,6 +29,7 @@ tasks are switches. It drives either engine, the physics or the twin's, with the
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -403,6 +404,21 @@ def _moments_cell(key: CellKey, sample: Sequence[float]) -> TaskTimeCell:
     )
 
 
+def switch_cost(
+    tasks: Sequence[ObservedTask], tables: InterferenceTables, robot_class: str
+) -> tuple[float, int]:
+    """What switching costs a class: its switch tasks' (after the first) total time over their
+    cells' total mean time in `tables`, and how many there are (nan and 0 where none)."""
+    paid = [
+        (t.task_time_s, tables.cell(t.circuit, t.counts, t.robot_class).mean_s)
+        for t in tasks
+        if t.switch and not t.first and t.robot_class == robot_class
+    ]
+    if not paid:
+        return math.nan, 0
+    return sum(t for t, _ in paid) / sum(m for _, m in paid), len(paid)
+
+
 def learner_tables(
     fixed: InterferenceTables,
     tasks: Sequence[ObservedTask],
@@ -432,21 +448,17 @@ def learner_tables(
         _moments_cell(c.key, own[c.key]) if len(own.get(c.key, ())) >= min_tasks else c
         for c in fixed.cells
     )
-    index = {c.key: c for c in cells}
     costs = []
+    among_learners = dataclasses.replace(fixed, cells=cells)
     for cls in fixed.classes:
-        paid = [
-            (t.task_time_s, index[(t.circuit, t.counts, t.robot_class)].mean_s)
-            for t in tasks
-            if t.switch and not t.first and t.robot_class == cls
-        ]
+        cost, n_switches = switch_cost(tasks, among_learners, cls)
         require(
-            len(paid) >= min_tasks,
+            n_switches >= min_tasks,
             f"switch tasks of class {cls!r}",
-            len(paid),
+            n_switches,
             f"at least min_tasks = {min_tasks} (log more learner trials)",
         )
-        costs.append(sum(t for t, _ in paid) / sum(m for _, m in paid))
+        costs.append(cost)
     by_cell: dict[tuple[bool, CellKey], list[float]] = defaultdict(list)
     by_class: dict[tuple[bool, str], list[float]] = defaultdict(list)
     for t in starts:
