@@ -467,7 +467,6 @@ def train_smdp(job: Run, on_batch: OnBatch) -> tuple[Network, int, int]:
     import torch
 
     from tavc_agents.learners import smdp_ppo
-    from tavc_env.adapters.torchrl_env import TorchArenaEnv
 
     ppo = smdp_ppo.PpoSettings(
         algorithm=job.algorithm,
@@ -476,12 +475,7 @@ def train_smdp(job: Run, on_batch: OnBatch) -> tuple[Network, int, int]:
         reward_scale=REWARD_SCALE,
         **dict(job.ppo),
     )
-    env = TorchArenaEnv(
-        ppo.n_envs,
-        env_kwargs={"scenario": job.scenario, "reward": "value", "max_sim_time_s": job.episode_s},
-        seed=job.seed,
-        with_state=job.algorithm == "mappo",
-    )
+    env = smdp_ppo.make_env(ppo, job.seed, scenario=job.scenario, max_sim_time_s=job.episode_s)
     untrained = smdp_ppo.make_learner(env, ppo)  # the curve's first point: the initial actor
     on_batch(0, 0, lambda: smdp_ppo.network(untrained.actor_net))
     torch.manual_seed(job.seed)  # training starts from the generator as it was: the same actor

@@ -86,19 +86,13 @@ def train(s: Settings) -> list[dict[str, Any]]:
     import torch  # the `marl` extra
 
     from tavc_agents.learners import smdp_ppo
-    from tavc_env.adapters.torchrl_env import TorchArenaEnv
 
     torch.manual_seed(s.seed_run)
     torch.set_num_threads(1)
     ppo = smdp_ppo.PpoSettings(
         algorithm=s.algorithm, n_envs=s.n_envs, steps_per_batch=s.steps_per_batch
     )
-    env = TorchArenaEnv(
-        s.n_envs,
-        env_kwargs={"scenario": s.scenario, "reward": "value"},
-        seed=s.seed_run,
-        with_state=s.algorithm == "mappo",
-    )
+    env = smdp_ppo.make_env(ppo, s.seed_run, scenario=s.scenario)
     batches: list[dict[str, Any]] = []
     last = smdp_ppo.Progress(0, 0, 0.0, 0.0)
 

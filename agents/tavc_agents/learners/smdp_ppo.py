@@ -115,6 +115,18 @@ class PpoSettings:
         return asdict(self)
 
 
+def make_env(s: PpoSettings, seed: int, **env_kwargs: Any) -> TorchArenaEnv:
+    """The batched env a run of `s` trains on: `s.n_envs` arenas of `env_kwargs` (arguments of
+    `tavc_env.arena.make_env`: a `scenario`, `max_sim_time_s`, ...) with value rewards (the
+    contract's), each arena's `state()` only where MAPPO's critic reads it, seeded from `seed`."""
+    return TorchArenaEnv(
+        s.n_envs,
+        env_kwargs={"reward": "value", **env_kwargs},
+        seed=seed,
+        with_state=s.algorithm == "mappo",
+    )
+
+
 # -- the semi-MDP advantages ------------------------------------------------------------------------
 def smdp_gae(
     reward: torch.Tensor,
