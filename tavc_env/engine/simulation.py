@@ -386,9 +386,9 @@ class Simulation:
             )
         for k in range(n_stalled):
             self._escape(int(self._stalled[k]), now)
+        # (the compiled loop found the next service end; a breakdown of the schedule updated it)
         if event:
             if not progressed:
-                self._next_service = min(tasks.service_until.tolist())  # np.min's value, cheaper
                 self._progress(now)
         elif now - self._progress_s >= self.jam_window_s:
             self._check_jam(now)
