@@ -63,7 +63,7 @@ def compiled(
     function only reads and writes the arrays its caller owns, and counting references to them
     (an atomic add per array argument, per inlined call) cost a third of the tick loop."""
     how: Literal["always", "never"] = "always" if inline else "never"
-    options = {"fastmath": False, "nogil": True, "inline": how, "_nrt": allocates}
+    options: dict[str, Any] = {"fastmath": False, "nogil": True, "inline": how, "_nrt": allocates}
     try:
         return _njit(cache=True, **options)(fn)
     except RuntimeError as error:  # numba: "cannot cache function ...: no locator available"
