@@ -181,13 +181,21 @@ def _steer_one(
     steer = 0.0
     push_x = 0.0
     push_y = 0.0
+    # beyond both the sensing range and `near` a robot changes nothing here: such pairs are
+    # skipped on their squared distance, whose square root would be at least `reach` (a bound
+    # above both, so the test can only skip pairs the exact test would skip)
+    reach = max(sensing, near) * (1.0 + 1e-9)
+    reach2 = reach * reach
     for k in range(n_others):
         j = others[k]
         if j == i or not present[j]:
             continue
         dx = pos[j, 0] - px
         dy = pos[j, 1] - py
-        dist = math.sqrt(dx * dx + dy * dy)
+        d2 = dx * dx + dy * dy
+        if d2 >= reach2:
+            continue
+        dist = math.sqrt(d2)
         ahead = dx * ux + dy * uy
         lateral = ux * dy - uy * dx  # > 0: the other robot is on the left
         if ahead > 0.0 and abs(lateral) < corridor and dist < sensing and dist < gdist:
@@ -241,7 +249,7 @@ def _steer_one(
         across = abs(hx * dy - hy * dx)
         if along > 0.0 and across < contact:
             free = min(free, along - math.sqrt(contact * contact - across * across))
-        if along > 0.0 and (not overtaking or across < corridor):
+        if governor > 0.0 and along > 0.0 and (not overtaking or across < corridor):
             clearance = min(clearance, math.sqrt(dx * dx + dy * dy) - contact)
     speed *= _clip_c((free - BRAKE_GAP_M) / BRAKE_DISTANCE_M, 0.0, 1.0)
     if governor > 0.0 and clearance < governor:
