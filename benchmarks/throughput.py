@@ -190,8 +190,14 @@ def run_case(
         row.update({k: v for k, v in found.items() if k not in ("start", "commands", "end")})
         rows.append(row)
     env = rows[0]
+    # the compiled tick loop's own share of the same run: what the env would cost per tick if
+    # nothing but the loop (physics, controller, task rules) cost anything
+    with compiled_loop_timer() as spent:
+        random_choice_run(config, rep, sim_s, interval_s)
+    env["loop_cpu_s"] = spent[0]
     if (env["ticks"], env["decisions"]) != (recorded["ticks"], recorded["decisions"]):
         raise RuntimeError(f"{common['case']}: the timed run differs from the recorded one")
+    env["loop_us_per_tick"] = 1e6 * env["loop_cpu_s"] / env["ticks"]
     for r in rows:
         r["sim_s_per_cpu_s"] = r["sim_s"] / r["cpu_s"]
         r["us_per_tick"] = 1e6 * r["cpu_s"] / r["ticks"]
@@ -298,6 +304,8 @@ def case_findings(rows: Sequence[Row], config: ArenaConfig) -> tuple[list[Any], 
     to_floor = mean_ci([f["us_per_tick"] / e["us_per_tick"] for e, f in zip(env, floor)])
     to_replay = mean_ci([p["us_per_tick"] / e["us_per_tick"] for e, p in zip(env, replay)])
     to_compiled = mean_ci([c["us_per_tick"] / e["us_per_tick"] for e, c in zip(env, cfloor)])
+    loop = mean_ci([e["loop_us_per_tick"] for e in env])
+    loop_ceiling = mean_ci([c["us_per_tick"] / e["loop_us_per_tick"] for e, c in zip(env, cfloor)])
     exact = all(r["exact"] for r in replay + cfloor)
     name = env[0]["case"]
     verdict = "-"
@@ -323,6 +331,8 @@ def case_findings(rows: Sequence[Row], config: ArenaConfig) -> tuple[list[Any], 
         fmt_ci(*mean_ci([r["us_per_tick"] for r in cfloor])[:3], 2),
         fmt_ci(*to_compiled[:3], 3),
         verdict38,
+        fmt_ci(*loop[:3], 2),
+        fmt_ci(*loop_ceiling[:3], 3),
         fmt_ci(*to_replay[:3], 3),
         fmt_ci(*to_floor[:3], 3),
         "yes" if exact else "NO",
@@ -339,6 +349,9 @@ def case_findings(rows: Sequence[Row], config: ArenaConfig) -> tuple[list[Any], 
         "ratio_to_compiled_floor_ci": [to_compiled[1], to_compiled[2]],
         "compiled_floor_us_per_tick": mean_ci([r["us_per_tick"] for r in cfloor])[0],
         "compiled_goal": verdict38,
+        "loop_us_per_tick": loop[0],
+        "loop_ceiling_to_compiled_floor": loop_ceiling[0],
+        "loop_ceiling_to_compiled_floor_ci": [loop_ceiling[1], loop_ceiling[2]],
         "replay_exact": exact,
         "load_1min": [min(loads), max(loads)],
         "arena_m": [config.width, config.height],
@@ -359,6 +372,8 @@ HEADER = [
     "compiled floor us / tick",
     "env / compiled floor",
     "compiled-floor goal (issue 38)",
+    "compiled loop us / tick",
+    "ceiling: compiled floor / loop",
     "env / replay",
     "env / bare loop",
     "replays exact",
@@ -490,7 +505,12 @@ def build_report(rows: Sequence[Row], s: Settings) -> Report:
             "'bare loop': the "
             "same bodies with velocities set once, pymunk stepping alone (its discs keep hitting "
             "walls, which costs more than the env's free driving). 'env / replay' and "
-            "'env / bare loop' and 'env / compiled floor' are ticks per CPU second, env over yardstick, paired by round. "
+            "'env / bare loop' and 'env / compiled floor' are ticks per CPU second, env over "
+            "yardstick, paired by round. 'compiled loop': the CPU time spent inside the compiled "
+            "tick loop (`run_ticks`: physics, controller, task rules) in a second run of the same "
+            "trajectory, per tick; 'ceiling' is the compiled floor over it, what 'env / compiled "
+            "floor' would be if the Python around the loop (the PettingZoo API, decisions, "
+            "rewards, observations, infos) cost nothing. "
             "Peak MiB is the case's process's maximum resident memory.",
             "",
             markdown_table(HEADER, [cells for cells, _ in found.values()]),
