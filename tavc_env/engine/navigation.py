@@ -395,7 +395,9 @@ def _steer_all_grid(
 def grid_scratch(n: int) -> tuple[np.ndarray, ...]:
     """The neighbour grid's working arrays for n robots: cell x, cell y, cell number, the robots
     on the floor sorted by (cell number, index), their cell numbers, a robot's neighbours, and
-    [how many robots `order` holds, -1: none yet]."""
+    [how many robots `order` holds, -1: none yet]; then the neighbour lists' (`steer_near_into`):
+    every robot's candidates one after another, where each robot's start, the positions and
+    presence at their making, and [whether they are valid: 1, or not yet: -1]."""
     return (
         np.zeros(n, np.int64),
         np.zeros(n, np.int64),
@@ -404,40 +406,38 @@ def grid_scratch(n: int) -> tuple[np.ndarray, ...]:
         np.zeros(n, np.int64),
         np.zeros(n, np.int64),
         np.full(1, -1, np.int64),
+        np.zeros(n * min(n, NEAR_PER_ROBOT), np.int64),
+        np.zeros(n + 1, np.int64),
+        np.zeros((n, 2)),
+        np.zeros(n, np.bool_),
+        np.full(1, -1, np.int64),
     )
 
 
-def _steer_grid_into(
+NEAR_PER_ROBOT = 64  # room in the neighbour lists per robot, on average (beyond: the grid)
+NEAR_SKIN_M = 1.0  # the lists reach this much beyond a cell; made anew when a robot moved half
+
+
+def _bin(
     pos: np.ndarray,
-    heading: np.ndarray,
-    target: np.ndarray,
-    moving: np.ndarray,
-    top_speed: np.ndarray,
     present: np.ndarray,
-    radius: float,
-    sensing: float,
-    governor: float,
-    overtaking: bool,
-    turn_step: float,
+    cell: float,
     width: float,
     height: float,
-    out_velocity: np.ndarray,
-    out_heading: np.ndarray,
-    cell: float,
     cx: np.ndarray,
     cy: np.ndarray,
     key: np.ndarray,
     order: np.ndarray,
     keys: np.ndarray,
-    others: np.ndarray,
     held: np.ndarray,
-) -> None:
-    """`steer_all_grid` on scratch arrays (`grid_scratch`) kept from tick to tick: `order`, the
-    robots on the floor sorted by (cell number, index), is sorted again from the last tick's
-    order by insertion, which costs O(n) while few robots change cells, where a fresh sort cost
-    O(n log n) and its allocations every tick. The sorted order of distinct (cell, index) pairs
-    is unique, so it is the one a stable sort by cell number of the robots in index order gives:
-    the commands are those of `steer_all_grid` whatever the scratch held."""
+) -> tuple[int, int, int]:
+    """Bin the robots into square cells of side `cell`: each robot's cell (cx, cy, key), and the
+    robots on the floor sorted by (cell number, index) into `order` (their keys into `keys`).
+    `order` is sorted again from what it held by insertion, which costs O(n) while few robots
+    change cells, where a fresh sort cost O(n log n) and its allocations every call. The sorted
+    order of distinct (cell, index) pairs is unique, so it is the one a stable sort by cell
+    number of the robots in index order gives, whatever the scratch held. Returns the grid's
+    columns and rows and how many robots are on the floor."""
     n = pos.shape[0]
     nx = max(int(width / cell) + 1, 1)
     ny = max(int(height / cell) + 1, 1)
@@ -471,59 +471,187 @@ def _steer_grid_into(
         order[b + 1] = v
     for k in range(n_present):
         keys[k] = key[order[k]]
+    return nx, ny, n_present
+
+
+_bin_c = compiled(_bin, inline=True)
+
+
+def _gather(
+    i: int,
+    nx: int,
+    ny: int,
+    n_present: int,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    order: np.ndarray,
+    keys: np.ndarray,
+    others: np.ndarray,
+) -> int:
+    """Write into `others` the robots binned (`_bin`) in the 3 x 3 cells around robot i's, in
+    increasing index order; return how many."""
+    m = 0
+    x0 = max(cx[i] - 1, 0)
+    x1 = min(cx[i] + 1, nx - 1)
+    y0 = max(cy[i] - 1, 0)
+    y1 = min(cy[i] + 2, ny)
     items = order[:n_present]
     keys_in = keys[:n_present]
-    for i in range(n):
+    for yy in range(y0, y1):
+        # cells x0..x1 of row yy are the consecutive cell numbers row + x0 .. row + x1: one
+        # search for the first, then the sorted keys in order up to the last
+        k = _first_at_least_c(keys_in, yy * nx + x0)
+        end = yy * nx + x1 + 1
+        while k < n_present and keys_in[k] < end:
+            others[m] = items[k]
+            m += 1
+            k += 1
+    # the cells are visited row by row: merge them into increasing index order
+    for a in range(1, m):
+        v = others[a]
+        b = a - 1
+        while b >= 0 and others[b] > v:
+            others[b + 1] = others[b]
+            b -= 1
+        others[b + 1] = v
+    return m
+
+
+_gather_c = compiled(_gather, inline=True)
+
+
+def _steer_grid_into(
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    governor: float,
+    overtaking: bool,
+    turn_step: float,
+    width: float,
+    height: float,
+    out_velocity: np.ndarray,
+    out_heading: np.ndarray,
+    cell: float,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    key: np.ndarray,
+    order: np.ndarray,
+    keys: np.ndarray,
+    others: np.ndarray,
+    held: np.ndarray,
+) -> None:
+    """`steer_all_grid` on scratch arrays (`grid_scratch`) kept from tick to tick (see `_bin`):
+    the commands are those of `steer_all_grid` whatever the scratch held."""
+    nx, ny, n_present = _bin_c(pos, present, cell, width, height, cx, cy, key, order, keys, held)
+    for i in range(pos.shape[0]):
         m = 0
-        x0 = max(cx[i] - 1, 0)
-        x1 = min(cx[i] + 1, nx - 1)
-        y0 = max(cy[i] - 1, 0)
-        y1 = min(cy[i] + 2, ny)
-        if not (moving[i] and present[i]):
-            y1 = y0  # it holds still and looks at nobody (`_steer_one` stops before them)
-        for yy in range(y0, y1):
-            # cells x0..x1 of row yy are the consecutive cell numbers row + x0 .. row + x1: one
-            # search for the first, then the sorted keys in order up to the last
-            k = _first_at_least_c(keys_in, yy * nx + x0)
-            end = yy * nx + x1 + 1
-            while k < n_present and keys_in[k] < end:
-                others[m] = items[k]
-                m += 1
-                k += 1
-        # the cells are visited row by row: merge them into increasing index order
-        for a in range(1, m):
-            v = others[a]
-            b = a - 1
-            while b >= 0 and others[b] > v:
-                others[b + 1] = others[b]
-                b -= 1
-            others[b + 1] = v
+        if moving[i] and present[i]:  # (else it holds still and looks at nobody)
+            m = _gather_c(i, nx, ny, n_present, cx, cy, order, keys, others)
         _steer_one_c(
-            i,
-            pos,
-            heading,
-            target,
-            moving,
-            top_speed,
-            present,
-            radius,
-            sensing,
-            governor,
-            overtaking,
-            turn_step,
-            width,
-            height,
-            others,
-            m,
-            out_velocity,
-            out_heading,
-        )
+            i, pos, heading, target, moving, top_speed, present, radius, sensing, governor,
+            overtaking, turn_step, width, height, others, m, out_velocity, out_heading,
+        )  # fmt: skip
 
 
 _steer_grid_into_c = compiled(_steer_grid_into)
 steer_grid_into = _steer_grid_into_c
 steer_all_grid = compiled(_steer_all_grid, allocates=True)
 GRID_MIN_ROBOTS = 16  # from this team size on the grid is faster than all pairs
+
+
+def _steer_near_into(
+    pos: np.ndarray,
+    heading: np.ndarray,
+    target: np.ndarray,
+    moving: np.ndarray,
+    top_speed: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    governor: float,
+    overtaking: bool,
+    turn_step: float,
+    width: float,
+    height: float,
+    out_velocity: np.ndarray,
+    out_heading: np.ndarray,
+    cell: float,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    key: np.ndarray,
+    order: np.ndarray,
+    keys: np.ndarray,
+    others: np.ndarray,
+    held: np.ndarray,
+    near: np.ndarray,
+    near_start: np.ndarray,
+    near_anchor: np.ndarray,
+    near_present: np.ndarray,
+    near_held: np.ndarray,
+) -> None:
+    """`steer_grid_into` on neighbour lists kept over ticks: each robot's candidates are the
+    robots in the 3 x 3 cells of side `cell + NEAR_SKIN_M` around it, made when no list is held,
+    a robot left or entered the floor, or one moved more than (about) half the skin since. A
+    pair within `cell` now was within `cell + NEAR_SKIN_M` then, so every robot that can change
+    a command is a candidate, in increasing index order, and a candidate beyond `cell` changes
+    nothing: the commands are exactly `steer_grid_into`'s. Where the lists would not fit in
+    `near` (a crowd far denser than `NEAR_PER_ROBOT`), that tick is `steer_grid_into`'s."""
+    n = pos.shape[0]
+    fresh = near_held[0] < 0
+    if not fresh:
+        limit = 0.49 * NEAR_SKIN_M  # below half the skin, with room for rounding
+        limit2 = limit * limit
+        for i in range(n):
+            if present[i] != near_present[i]:
+                fresh = True
+                break
+            dx = pos[i, 0] - near_anchor[i, 0]
+            dy = pos[i, 1] - near_anchor[i, 1]
+            if present[i] and dx * dx + dy * dy > limit2:
+                fresh = True
+                break
+    if fresh:
+        big = cell + NEAR_SKIN_M
+        nx, ny, n_present = _bin_c(pos, present, big, width, height, cx, cy, key, order, keys, held)
+        total = 0
+        near_held[0] = 1
+        for i in range(n):
+            near_start[i] = total
+            near_anchor[i, 0] = pos[i, 0]
+            near_anchor[i, 1] = pos[i, 1]
+            near_present[i] = present[i]
+            if present[i]:  # (moving or not: it may start moving before the next lists)
+                m = _gather_c(i, nx, ny, n_present, cx, cy, order, keys, others)
+                if total + m > near.shape[0]:
+                    near_held[0] = -1
+                    break
+                for k in range(m):
+                    near[total + k] = others[k]
+                total += m
+        near_start[n] = total
+        if near_held[0] < 0:
+            _steer_grid_into_c(
+                pos, heading, target, moving, top_speed, present, radius, sensing, governor,
+                overtaking, turn_step, width, height, out_velocity, out_heading, cell, cx, cy,
+                key, order, keys, others, held,
+            )  # fmt: skip
+            return
+    for i in range(n):
+        first = near_start[i]
+        m = near_start[i + 1] - first
+        _steer_one_c(
+            i, pos, heading, target, moving, top_speed, present, radius, sensing, governor,
+            overtaking, turn_step, width, height, near[first:], m, out_velocity, out_heading,
+        )  # fmt: skip
+
+
+_steer_near_into_c = compiled(_steer_near_into)
+steer_near_into = _steer_near_into_c
 steer_all = compiled(_steer_all, allocates=True)
 
 
@@ -951,7 +1079,8 @@ class TickArgs(NamedTuple):
     legs: np.ndarray
     draw_legs: bool
     progress_pos: np.ndarray
-    # scratch kept from call to call: arange(n) for all pairs, the neighbour grid's arrays
+    # scratch kept from call to call: arange(n) for all pairs, the neighbour grid's arrays and
+    # its neighbour lists (`grid_scratch`)
     everyone: np.ndarray
     grid_cx: np.ndarray
     grid_cy: np.ndarray
@@ -960,6 +1089,11 @@ class TickArgs(NamedTuple):
     grid_keys: np.ndarray
     grid_others: np.ndarray
     grid_held: np.ndarray
+    near: np.ndarray
+    near_start: np.ndarray
+    near_anchor: np.ndarray
+    near_present: np.ndarray
+    near_held: np.ndarray
 
 
 def _run_ticks(
@@ -1014,6 +1148,11 @@ def _run_ticks(
     grid_keys: np.ndarray,
     grid_others: np.ndarray,
     grid_held: np.ndarray,
+    near: np.ndarray,
+    near_start: np.ndarray,
+    near_anchor: np.ndarray,
+    near_present: np.ndarray,
+    near_held: np.ndarray,
     *task_fields: Any,
 ) -> tuple[int, int, int, int, int, bool, bool, float, float]:
     """Up to `max_ticks` ticks from tick number `ticks`, each with its task events, stopping after
@@ -1034,10 +1173,11 @@ def _run_ticks(
                 aim[i, 1] = src[i, 1]
             steer_at = aim
         if cell > 0.0:
-            steer_grid_into(
+            steer_near_into(
                 pos, heading, steer_at, moving, top_speed, present, radius, sensing, governor,
                 overtaking, turn_step, width, height, velocity, heading, cell, grid_cx, grid_cy,
-                grid_key, grid_order, grid_keys, grid_others, grid_held,
+                grid_key, grid_order, grid_keys, grid_others, grid_held, near, near_start,
+                near_anchor, near_present, near_held,
             )  # fmt: skip
         else:
             _steer_pairs_c(

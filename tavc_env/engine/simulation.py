@@ -49,6 +49,11 @@ _GRID_FIELDS = (
     "grid_keys",
     "grid_others",
     "grid_held",
+    "near",
+    "near_start",
+    "near_anchor",
+    "near_present",
+    "near_held",
 )
 JAM_MOTION_M = 1.0  # ... while no moving robot got this far from where the window began
 

@@ -21,6 +21,7 @@ from tavc_env.engine.navigation import (
     steer_all,
     steer_all_grid,
     steer_grid_into,
+    steer_near_into,
 )
 from tavc_env.engine.simulation import Simulation
 from tavc_env.engine.world import World
@@ -187,8 +188,49 @@ def test_the_grid_kept_from_tick_to_tick_gives_exactly_the_all_pairs_commands() 
         common = (pos, heading, target, moving, speed, present, radius, sensing, 0.0, False)
         common += (turn, w, h)
         steer_all(*common, a_v, a_h)
-        steer_grid_into(*common, b_v, b_h, cell, *scratch)
+        steer_grid_into(*common, b_v, b_h, cell, *scratch[:7])
         assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), tick
+
+
+@pytest.mark.parametrize("room", [None, 45])
+def test_neighbour_lists_kept_over_ticks_give_exactly_the_all_pairs_commands(
+    room: int | None,
+) -> None:
+    """The compiled tick steers large teams on neighbour lists kept over ticks
+    (`steer_near_into`): robots drifting less than the skin between ticks (lists kept), jumping
+    (lists made anew), leaving and re-entering the floor, and lists too long for their room
+    (`room`: that tick falls back to the grid) leave the commands those of `steer_all`."""
+    rng = np.random.default_rng(9)
+    radius, sensing, turn, w, h = 0.22, 1.0, 0.175, 20.0, 8.0
+    cell = neighbour_cell_m(radius, sensing)
+    n = 40
+    scratch = list(grid_scratch(n))
+    if room is not None:
+        scratch[7] = np.zeros(room, np.int64)
+    pos = rng.uniform(0.0, 1.0, size=(n, 2)) * np.array([w, h])
+    present = np.ones(n, dtype=bool)
+    made = 0
+    for tick in range(400):
+        pos += rng.normal(scale=0.02 if tick % 40 else 2.0, size=(n, 2))
+        if tick % 23 == 0:
+            present = rng.random(n) < 0.85
+        heading = rng.uniform(-np.pi, np.pi, n)
+        target = pos + rng.normal(scale=2.0, size=(n, 2))
+        moving = rng.random(n) < 0.8
+        speed = rng.uniform(0.2, 0.3, n)
+        a_v, a_h = np.zeros((n, 2)), np.zeros(n)
+        b_v, b_h = np.zeros((n, 2)), np.zeros(n)
+        common = (pos, heading, target, moving, speed, present, radius, sensing, 0.0, False)
+        common += (turn, w, h)
+        anchor_before = scratch[9].copy()
+        steer_all(*common, a_v, a_h)
+        steer_near_into(*common, b_v, b_h, cell, *scratch)
+        made += not np.array_equal(anchor_before, scratch[9])
+        assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), tick
+    if room is None:
+        assert 20 < made < 200  # kept over most ticks, made anew after jumps and drift
+    else:
+        assert scratch[11][0] == -1  # the lists did not fit: the grid steered
 
 
 @pytest.mark.parametrize(("speed_noise", "per_task"), [(0.0, 1), (0.1, 2)])
