@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -42,6 +43,7 @@ import tavc_env
 from arena_runs import learner_of, run_batch
 from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table
 from tavc_agents.analysis.stats import mean_ci
+from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.registry import make_allocator
 from tavc_agents.experiments.runner import env_arguments, run_trial
 from tavc_agents.experiments.study import (
@@ -224,8 +226,9 @@ def compare(batch: Mapping[str, list[float]], twin: Mapping[str, list[float]]) -
 
 
 def time_speed(s: Settings, tables: Mapping[str, Any]) -> Row:
-    """Seconds per trial of the physics, the Policy-based twin and the batched twin in the speed
-    cell, timed one after the other in this process."""
+    """CPU seconds per trial (`time.process_time`: other processes on a shared machine do not
+    count) of the physics, the Policy-based twin and the batched twin in the speed cell, timed one
+    after the other in this process."""
     arena, condition = SPEED_CELL
     allocator, params = arena_runs.CONDITIONS[condition]
     convergence_h, measured_h = s.periods_h
@@ -234,7 +237,7 @@ def time_speed(s: Settings, tables: Mapping[str, Any]) -> Row:
     )
 
     def per_trial_s(count: int, factory: Any) -> float:
-        started = time.perf_counter()
+        started = time.process_time()
         for seed in range(count):
             run_trial(
                 make_allocator(allocator, **params),
@@ -244,11 +247,11 @@ def time_speed(s: Settings, tables: Mapping[str, Any]) -> Row:
                 env_factory=factory,
                 **env_arguments(arena_runs.ARENAS[arena]),
             )
-        return (time.perf_counter() - started) / count
+        return (time.process_time() - started) / count
 
     physics = per_trial_s(s.speed_physics, None)
     twin = per_trial_s(s.speed_twin, twin_env)
-    started = time.perf_counter()
+    started = time.process_time()
     run_batch(
         arena_runs.arena_config(arena),
         InterferenceTables.from_dict(tables),
@@ -258,8 +261,13 @@ def time_speed(s: Settings, tables: Mapping[str, Any]) -> Row:
         convergence_h * 3600.0,
         measured_h * 3600.0,
     )
-    batch = (time.perf_counter() - started) / s.trials
+    batch = (time.process_time() - started) / s.trials
+    meta = run_metadata()
     return {
+        # when and where it was timed (a resumed run keeps its cells' provenance)
+        "measured_utc": meta["timestamp_utc"],
+        "measured_commit": meta["git"]["commit"],
+        "load_1min": os.getloadavg()[0],
         "physics_s": physics,
         "twin_s": twin,
         "batch_s": batch,
@@ -305,8 +313,9 @@ def report_body(rows: Sequence[Row], speed: Row, s: Settings) -> str:
                 table,
             ),
             "",
-            f"**Speed** (`{SPEED_CELL[0]}`, `{SPEED_CELL[1]}`, one process, one after the other): "
-            f"physics {speed['physics_s']:.2f} s per trial ({s.speed_physics} trials), "
+            f"**Speed** (`{SPEED_CELL[0]}`, `{SPEED_CELL[1]}`, one process, one after the other, "
+            f"CPU seconds; timed {speed['measured_utc']} at commit "
+            f"`{str(speed['measured_commit'])[:12]}`, load {speed['load_1min']:.1f}): physics {speed['physics_s']:.2f} s per trial ({s.speed_physics} trials), "
             f"Policy-based twin {speed['twin_s']:.3f} s ({s.speed_twin} trials, "
             f"{speed['twin_speedup']:.0f}x faster), batched twin {1000 * speed['batch_s']:.2f} ms "
             f"({s.trials} trials in one batch, **{speed['batch_speedup']:.0f}x faster** than the "
