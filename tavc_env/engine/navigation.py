@@ -34,6 +34,7 @@ tick at the end of this file (`run_ticks`) calls it with the physics step.
 
 from __future__ import annotations
 
+import ctypes
 import math
 import os as _os
 import warnings as _warnings
@@ -46,6 +47,11 @@ from numba import njit as _njit
 from numba import types
 from numba.core import config as _numba_config
 from numba.extending import intrinsic
+from numba.np.random._constants import fi_double as _ZIG_F
+from numba.np.random._constants import ki_double as _ZIG_K
+from numba.np.random._constants import wi_double as _ZIG_W
+from numba.np.random._constants import ziggurat_nor_inv_r as _ZIG_INV_R
+from numba.np.random._constants import ziggurat_nor_r as _ZIG_R
 
 from tavc_env.config import ArenaConfig
 
@@ -924,22 +930,30 @@ break_down = compiled(_break_down)
 
 
 def _end_services(
-    t: TaskArrays, now: float, done: np.ndarray, legs: np.ndarray, draw_legs: bool
-) -> tuple[int, int]:
+    t: TaskArrays,
+    now: float,
+    done: np.ndarray,
+    speed_noise: float,
+    speeds: np.ndarray,
+    speed_factor: np.ndarray,
+    top_speed: np.ndarray,
+    bitgen: np.ndarray,
+) -> int:
     """The services due at `now` end, robot by robot. Writes the robots that completed a task
-    into `done` and, if `draw_legs`, those that start a leg to the sink (their speed is drawn
-    anew, in Python) into `legs`; returns how many of each."""
+    into `done` and returns how many; a robot that starts its leg to the sink gets its speed
+    for the leg drawn anew (`speed_noise` > 0: `Simulation._new_leg`'s draw, from the
+    generator `bitgen` addresses, in robot order)."""
     n_done = 0
-    n_legs = 0
     for i in range(t.service_until.shape[0]):
         if t.service_until[i] <= now + 1e-9:
             if finish_service(t, i):
                 done[n_done] = i
                 n_done += 1
-            elif draw_legs:
-                legs[n_legs] = i
-                n_legs += 1
-    return n_done, n_legs
+            elif speed_noise > 0.0:
+                factor = min(max(1.0 + speed_noise * _standard_normal_c(bitgen), 0.5), 1.5)
+                speed_factor[i] = factor
+                top_speed[i] = speeds[i] * factor
+    return n_done
 
 
 end_services = compiled(_end_services)
@@ -1018,10 +1032,87 @@ def _set_count(typingctx: object, array: types.Type, count: types.Type) -> objec
     return types.int64(types.int64, types.int64), codegen
 
 
+def _call_uint64(typingctx: object, fn: types.Type, state: types.Type) -> object:
+    """`fn(state)` for a C function `uint64_t fn(void *)` at address `fn` (a numpy bit
+    generator's `next_uint64`)."""
+
+    def codegen(
+        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
+    ) -> object:
+        kind = ir.FunctionType(ir.IntType(64), [_VOID_P])
+        call = builder.inttoptr(args[0], kind.as_pointer())
+        return builder.call(call, [builder.inttoptr(args[1], _VOID_P)])
+
+    return types.uint64(types.int64, types.int64), codegen
+
+
+def _call_double(typingctx: object, fn: types.Type, state: types.Type) -> object:
+    """`fn(state)` for a C function `double fn(void *)` at address `fn` (`next_double`)."""
+
+    def codegen(
+        context: object, builder: ir.IRBuilder, sig: object, args: list[ir.Value]
+    ) -> object:
+        kind = ir.FunctionType(ir.DoubleType(), [_VOID_P])
+        call = builder.inttoptr(args[0], kind.as_pointer())
+        return builder.call(call, [builder.inttoptr(args[1], _VOID_P)])
+
+    return types.float64(types.int64, types.int64), codegen
+
+
 # numba's intrinsic wrappers (callable from compiled code only)
 space_step: Any = intrinsic(_space_step)
 each_body: Any = intrinsic(_each_body)
 set_count: Any = intrinsic(_set_count)
+call_uint64: Any = intrinsic(_call_uint64)
+call_double: Any = intrinsic(_call_double)
+
+# indices into a bit generator's addresses (`bit_generator_calls`)
+B_STATE, B_NEXT_UINT64, B_NEXT_DOUBLE = 0, 1, 2
+
+
+def bit_generator_calls(rng: np.random.Generator) -> np.ndarray:
+    """The addresses through which compiled code draws from `rng` itself, in its stream: its
+    bit generator's state, `next_uint64` and `next_double` (numpy's C interface; valid while
+    `rng` lives)."""
+    c = rng.bit_generator.ctypes
+    fns = (c.next_uint64, c.next_double)
+    return np.array(
+        [c.state_address, *(ctypes.cast(f, ctypes.c_void_p).value for f in fns)], dtype=np.int64
+    )
+
+
+def _standard_normal(bitgen: np.ndarray) -> float:
+    """`rng.standard_normal()` of the generator `bitgen` addresses (`bit_generator_calls`):
+    numpy's ziggurat (`random_standard_normal` in numpy's distributions.c, as numba's own
+    Generator support translates it, with its tables), the same draws in the same order, bit
+    for bit (tests/tavc_env/engine/test_engine_batch.py checks it against numpy)."""
+    state = bitgen[B_STATE]
+    while True:
+        r = call_uint64(bitgen[B_NEXT_UINT64], state)
+        idx = r & 0xFF
+        r >>= 8
+        sign = r & 0x1
+        rabs = (r >> 1) & 0x000FFFFFFFFFFFFF
+        x = rabs * _ZIG_W[idx]
+        if sign & 0x1:
+            x = -x
+        if rabs < _ZIG_K[idx]:
+            return x
+        if idx == 0:
+            while True:
+                xx = -_ZIG_INV_R * np.log1p(-call_double(bitgen[B_NEXT_DOUBLE], state))
+                yy = -np.log1p(-call_double(bitgen[B_NEXT_DOUBLE], state))
+                if yy + yy > xx * xx:
+                    if (rabs >> 8) & 0x1:
+                        return -(_ZIG_R + xx)
+                    return _ZIG_R + xx
+        else:
+            u = call_double(bitgen[B_NEXT_DOUBLE], state)
+            if (_ZIG_F[idx - 1] - _ZIG_F[idx]) * u + _ZIG_F[idx] < np.exp(-0.5 * x * x):
+                return x
+
+
+_standard_normal_c = compiled(_standard_normal, inline=True)
 
 # indices into `World.c_calls` (tavc_env.engine.world fills it)
 C_STEP, C_EACH_BODY, C_SPACE, C_SET_VISIT, C_SET_DATA, C_SET_FLOATS = 0, 1, 2, 3, 4, 5
@@ -1032,7 +1123,7 @@ QUIET = 0  # every tick ran to its end with no event for Python
 SCHEDULE = 1  # the last tick's task events ran; a schedule entry is due: Python runs it, then the
 # stuck check, and finishes the tick
 HANDBACK = 2  # the last tick's task events and stuck check ran; Python finishes the tick
-# (completions, speed draws of new legs, escapes, the jam watch)
+# (completions, escapes, the jam watch)
 
 
 class TickArgs(NamedTuple):
@@ -1071,13 +1162,16 @@ class TickArgs(NamedTuple):
     patience_s: float
     arrived: np.ndarray
     stalled: np.ndarray
-    # the task rules' outputs (robots that completed a task, robots starting a leg whose speed
-    # Python draws), the jam watch's positions at the last task event (the rules' state, a
-    # `TaskArrays`, follows these arguments field by field: numba takes a named tuple argument
-    # at several microseconds per call, its fields at a tenth of that)
+    # the task rules' outputs (robots that completed a task), the legs' speed draws (the
+    # config's speed noise, base speeds, each robot's factor for its leg, the generator's
+    # `bit_generator_calls`), the jam watch's positions at the last task event (the rules'
+    # state, a `TaskArrays`, follows these arguments field by field: numba takes a named tuple
+    # argument at several microseconds per call, its fields at a tenth of that)
     done: np.ndarray
-    legs: np.ndarray
-    draw_legs: bool
+    speed_noise: float
+    speeds: np.ndarray
+    speed_factor: np.ndarray
+    bitgen: np.ndarray
     progress_pos: np.ndarray
     # scratch kept from call to call: arange(n) for all pairs, the neighbour grid's arrays and
     # its neighbour lists (`grid_scratch`)
@@ -1137,8 +1231,10 @@ def _run_ticks(
     arrived: np.ndarray,
     stalled: np.ndarray,
     done: np.ndarray,
-    legs: np.ndarray,
-    draw_legs: bool,
+    speed_noise: float,
+    speeds: np.ndarray,
+    speed_factor: np.ndarray,
+    bitgen: np.ndarray,
     progress_pos: np.ndarray,
     everyone: np.ndarray,
     grid_cx: np.ndarray,
@@ -1154,12 +1250,13 @@ def _run_ticks(
     near_present: np.ndarray,
     near_held: np.ndarray,
     *task_fields: Any,
-) -> tuple[int, int, int, int, int, bool, bool, float, float]:
-    """Up to `max_ticks` ticks from tick number `ticks`, each with its task events, stopping after
-    the first tick that needs Python: a completion (a decision epoch), a new leg's speed draw, a
-    schedule entry due, a stuck robot, a jam check. Returns (ticks run, QUIET / SCHEDULE /
-    HANDBACK, completed, legs, stalled (-1: not checked yet), whether the last tick had a task
-    event, whether its progress was recorded here, the next service end, the progress time)."""
+) -> tuple[int, int, int, int, bool, bool, float, float]:
+    """Up to `max_ticks` ticks from tick number `ticks`, each with its task events (and the
+    speed draws of legs that start), stopping after the first tick that needs Python: a
+    completion (a decision epoch), a schedule entry due, a stuck robot, a jam check. Returns
+    (ticks run, QUIET / SCHEDULE / HANDBACK, completed, stalled (-1: not checked yet), whether
+    the last tick had a task event, whether its progress was recorded here, the next service
+    end, the progress time)."""
     tasks = TaskArrays(*task_fields)
     space = c_calls[C_SPACE]
     each = c_calls[C_EACH_BODY]
@@ -1206,9 +1303,10 @@ def _run_ticks(
         services_due = next_service <= now + 1e-9
         schedule_due = next_schedule <= now + 1e-9
         n_done = 0
-        n_legs = 0
         if services_due:
-            n_done, n_legs = end_services(tasks, now, done, legs, draw_legs)
+            n_done = end_services(
+                tasks, now, done, speed_noise, speeds, speed_factor, top_speed, bitgen
+            )
         # then the arrivals: all found first, then handled robot by robot
         n_arrived = _arrivals_c(pos, target, trigger, arrived)
         for a in range(n_arrived):
@@ -1219,7 +1317,7 @@ def _run_ticks(
             for i in range(tasks.service_until.shape[0]):
                 next_service = min(next_service, tasks.service_until[i])
         if schedule_due:
-            return k + 1, SCHEDULE, n_done, n_legs, -1, event, False, next_service, progress_s
+            return k + 1, SCHEDULE, n_done, -1, event, False, next_service, progress_s
         n_stalled = _stuck_of_c(
             pos, target, moving, present, anchor, anchor_time, now, patience_s, stalled
         )
@@ -1233,7 +1331,6 @@ def _run_ticks(
             progressed = True
         if (
             n_done != 0
-            or n_legs != 0
             or n_stalled != 0
             or (event and not progressed)
             or (not event and now - progress_s >= jam_window_s)
@@ -1242,14 +1339,13 @@ def _run_ticks(
                 k + 1,
                 HANDBACK,
                 n_done,
-                n_legs,
                 n_stalled,
                 event,
                 progressed,
                 next_service,
                 progress_s,
             )
-    return max_ticks, QUIET, 0, 0, 0, False, False, next_service, progress_s
+    return max_ticks, QUIET, 0, 0, False, False, next_service, progress_s
 
 
 run_ticks = compiled(_run_ticks)

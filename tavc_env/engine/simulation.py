@@ -32,6 +32,7 @@ from tavc_env.engine.navigation import (
     STUCK_PATIENCE_S,
     Navigator,
     TickArgs,
+    bit_generator_calls,
     grid_scratch,
     neighbour_cell_m,
     run_ticks,
@@ -124,7 +125,7 @@ class Simulation:
         self._pos = np.zeros((n, 2))  # positions after the last physics step
         self._dt = config.dt
         self._tick_args: tuple[object, ...] = ()  # `TickArgs`, then the task rules' arrays
-        self._bound: tuple[object, ...] = (None,) * 7
+        self._bound: tuple[object, ...] = (None,) * 8
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
             neighbour_cell_m(config.robot_radius, config.sensing_range_m)
@@ -148,7 +149,6 @@ class Simulation:
         self._hits = np.zeros(n, dtype=np.int64)  # the compiled tick's outputs (first k rows)
         self._stalled = np.zeros(n, dtype=np.int64)
         self._done = np.zeros(n, dtype=np.int64)
-        self._legs = np.zeros(n, dtype=np.int64)
         self._next_service = math.inf  # earliest end of a loading / unloading
         self._anchor = np.zeros((n, 2))  # where each robot last made progress ...
         self._anchor_time = np.zeros(n)  # ... and when
@@ -297,8 +297,10 @@ class Simulation:
             arrived=self._hits,
             stalled=self._stalled,
             done=self._done,
-            legs=self._legs,
-            draw_legs=self.config.speed_noise > 0,
+            speed_noise=float(self.config.speed_noise),
+            speeds=self.speeds,
+            speed_factor=self.speed_factor,
+            bitgen=bit_generator_calls(self.rng),
             progress_pos=self._progress_pos,
             everyone=np.arange(self.config.n_robots),
             **dict(zip(_GRID_FIELDS, grid_scratch(self.config.n_robots))),
@@ -314,6 +316,7 @@ class Simulation:
             self.top_speed,
             self._anchor,
             self._progress_pos,
+            self._rng,  # (the compiled tick draws from it through its addresses)
         )
 
     def _ticks(self, out: Advance, max_ticks: int) -> int:
@@ -330,28 +333,27 @@ class Simulation:
             or bound[4] is not self.top_speed
             or bound[5] is not self._anchor
             or bound[6] is not self._progress_pos
+            or bound[7] is not self._rng
         ):
             self._bind()
-        ran, stage, n_done, n_legs, n_stalled, event, progressed, next_service, progress_s = (
-            run_ticks(
-                max_ticks,
-                self.ticks,
-                self._dt,
-                self._escapes_end,
-                self._next_service,
-                float(self._schedule[0].at_s) if self._schedule else math.inf,
-                self._progress_s,
-                self.jam_window_s,
-                self.jammed,
-                *self._tick_args,
-            )
+        ran, stage, n_done, n_stalled, event, progressed, next_service, progress_s = run_ticks(
+            max_ticks,
+            self.ticks,
+            self._dt,
+            self._escapes_end,
+            self._next_service,
+            float(self._schedule[0].at_s) if self._schedule else math.inf,
+            self._progress_s,
+            self.jam_window_s,
+            self.jammed,
+            *self._tick_args,
         )
         self.ticks += ran
         self.time_s = self.ticks * self._dt
         self._next_service = float(next_service)
         self._progress_s = float(progress_s)
         if stage != QUIET:
-            self._end_tick(out, stage, n_done, n_legs, n_stalled, event, progressed)
+            self._end_tick(out, stage, n_done, n_stalled, event, progressed)
         if self._observers:
             self._notify(out, marks)
         return int(ran)
@@ -361,19 +363,16 @@ class Simulation:
         out: Advance,
         stage: int,
         n_done: int,
-        n_legs: int,
         n_stalled: int,
         event: bool,
         progressed: bool,
     ) -> None:
         """What the compiled tick leaves to Python at the end of a tick, in the order of the
-        rules: the speed draws of the legs that started (in robot order, where the service
-        ends drew them), the completions, the schedule and then the stuck check (`SCHEDULE`),
-        escapes, and the jam watch."""
+        rules (the legs that started drew their speeds in the compiled tick, in robot order,
+        from the same generator): the completions, the schedule and then the stuck check
+        (`SCHEDULE`), escapes, and the jam watch."""
         tasks = self.tasks
         now = self.time_s
-        for k in range(n_legs):
-            self._new_leg(int(self._legs[k]))
         for k in range(n_done):
             out.completions.append(tasks.completion(int(self._done[k]), now))
         if stage == SCHEDULE:
