@@ -452,6 +452,8 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
     def _circuit_of(self, agent: str, a: object) -> int:
         """The circuit index deciding robot `agent` chose, or a ValueError saying what is allowed."""
         m = self.config.n_circuits
+        if type(a) is int and 0 <= a < m:  # the common case, without the checks' cost
+            return a
         if a is None:
             raise ValueError(
                 f"missing action for {agent}, which must decide; allowed: an integer in [0, {m - 1}]"

@@ -228,7 +228,7 @@ class TaskCycle:
 
     def choose(self, i: int, circuit: int, now: float) -> None:
         """Robot i (deciding) starts a task on `circuit`."""
-        rules.choose(self.arrays, i, circuit, now)
+        rules.choose_fields(i, circuit, now, *self.arrays)
 
     def arrive(self, i: int, now: float) -> None:
         """Robot i reached the distance that fires its current trigger."""
