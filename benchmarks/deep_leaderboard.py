@@ -860,7 +860,10 @@ def report(
             "its final network's score under each read-out on the evaluation seeds and on the "
             "training-side episodes, whether its greedy policy is `stay` (every robot goes back "
             "to the circuit it just served), and the probability with which its sampled policy "
-            "stays (each robot's after each circuit: the mean, and the lowest and highest):",
+            "stays (each robot's after each circuit: the mean, and the lowest and highest), and "
+            "where the sampled policy sends the team in the long run (robots per circuit: each "
+            "robot's chain over the circuit it just served, run from its start, as a share of "
+            "its decisions):",
             runs_table(s, runs, results, refs, evaluations),
             cost_plan(s, rows, len(runs), evaluations),
             f"Machine: {machine.get('cpu_model', '?')}, {machine.get('cores', '?')} cores, "
@@ -941,7 +944,8 @@ def runs_table(
 ) -> str:
     """One row per saved run, by scenario, learner and seed: its (greedy) learning curve's start,
     best and end, its score under each read-out on the evaluation seeds and on the training-side
-    episodes, its greedy policy and how often its sampled policy stays."""
+    episodes, its greedy policy, how often its sampled policy stays and where it sends the team
+    in the long run."""
     table = []
     order = sorted(
         runs, key=lambda j: (s.scenarios.index(j.scenario), s.algorithms.index(j.algorithm), j.seed)
@@ -968,6 +972,7 @@ def runs_table(
                 *(score_text(saved.get(ro), "choice_values_per_h", ref) for ro in READOUTS),
                 "stay" if stays else "moves",
                 stay_probability(saved),
+                long_run_text(saved, SCENARIOS[job.scenario]),
             ]
         )
     if not table:
@@ -985,6 +990,7 @@ def runs_table(
         "training-side, greedy",
         "greedy policy",
         "sampled P(stay): mean (min-max)",
+        "sampled, long run: robots per circuit",
     ]
     return markdown_table(header, table)
 
@@ -992,6 +998,41 @@ def runs_table(
 def score_text(ev: Mapping[str, Any] | None, key: str, ref: Mapping[str, float]) -> str:
     """A saved read-out's mean normalised score over its episodes `key`; "-" if not saved."""
     return "-" if ev is None else f"{normalised(float(np.mean(ev[key])), ref):.3f}"
+
+
+def long_run_share(
+    probabilities: Sequence[Sequence[Sequence[float]]], starts: Sequence[int] | None
+) -> np.ndarray:
+    """Where the sampled policy sends the team in the long run: per circuit, the robots' summed
+    share of decisions on it, each robot's chain over "the circuit it just served" (its
+    probabilities after each circuit) run from its start circuit (uniform where the start is
+    drawn), averaged over LONG_RUN_DECISIONS decisions (a Cesaro mean: defined for every chain,
+    periodic or with several closed classes). A share of decisions, not of time."""
+    total = np.zeros(len(probabilities[0]))
+    for i, rows in enumerate(probabilities):
+        move = np.asarray(rows, dtype=float)
+        at = np.full(len(move), 1.0 / len(move))
+        if starts is not None:
+            at = np.eye(len(move))[starts[i]]
+        mean = np.zeros(len(move))
+        for _ in range(LONG_RUN_DECISIONS):
+            at = at @ move
+            mean += at
+        total += mean / LONG_RUN_DECISIONS
+    return total
+
+
+LONG_RUN_DECISIONS = 2000
+
+
+def long_run_text(saved: Mapping[str, Mapping[str, Any]], scenario: Any) -> str:
+    """`long_run_share` of a run's saved read-out as "a / b / c" robots; "-" while none is
+    saved."""
+    probabilities = next((ev["probabilities"] for ev in saved.values()), None)
+    if probabilities is None:
+        return "-"
+    starts = dict(scenario.arena).get("start_circuits")
+    return " / ".join(f"{x:.1f}" for x in long_run_share(probabilities, starts))
 
 
 def stay_probability(saved: Mapping[str, Mapping[str, Any]]) -> str:
