@@ -826,6 +826,40 @@ def prediction_body(s: Settings, rows: Sequence[Row]) -> str:
     )
 
 
+def reward_shape(s: Settings) -> list[Row]:
+    """A check on the twin's one assumption about a task time's shape: what a learner is paid is
+    w / t, so what matters is E[1/t], which the twin takes from its lognormal (moments matched to
+    the cell). Per logged arena and class, over own-circuit tasks after the first of the logged
+    physics trials: E[1/t] on the high-value circuit and on the others, in physics and by the
+    learner tables' lognormal of each task's own cell, and the ratio low / high that the choice
+    turns on. In sample (the tables come from these logs): it tests the shape, not the cells."""
+    physics: dict[str, list[Mapping[str, Any]]] = {}
+    for record in load_trials(s.logs_dir()):
+        job = record["record"]
+        if job.get("engine", "physics") == "physics":
+            physics.setdefault(job["arena"], []).append(record["result"])
+    rows: list[Row] = []
+    for arena in dict.fromkeys(a for a, _ in LOG_CELLS):
+        tables = learned_tables(arena, s)
+        config = arena_runs.arena_config(arena)
+        high = int(np.argmax([c.value for c in config.circuits]))
+        tasks = [t for r in physics.get(arena, []) for t in trial_tasks(arena, r)]
+        for cls in tables.classes:
+            own = [t for t in tasks if _own(t, cls)]
+            row: Row = {"arena": arena, "class": cls, "tasks": len(own)}
+            for side, keep in (("high", True), ("low", False)):
+                picked = [t for t in own if (t.circuit == high) == keep]
+                cells = [tables.cell(t.circuit, t.counts, cls).lognormal() for t in picked]
+                row[f"physics_{side}"] = float(np.mean([1.0 / t.task_time_s for t in picked]))
+                row[f"twin_{side}"] = float(
+                    np.mean([math.exp(sd * sd / 2 - mu) for mu, sd in cells])
+                )
+            for who in ("physics", "twin"):
+                row[f"{who}_ratio"] = row[f"{who}_low"] / row[f"{who}_high"]
+            rows.append(row)
+    return rows
+
+
 def run_test(s: Settings) -> Outcome:
     cells = read_report(s.prediction)["summary"]["cells"]
     if s.quick:  # a smoke run: the plan's cells, a few trials each
@@ -899,6 +933,30 @@ def run_test(s: Settings) -> Outcome:
             for r in rows
         ],
     )
+    shape = reward_shape(s)
+    shape_table = markdown_table(
+        [
+            "arena",
+            "class",
+            "tasks",
+            "E[1/t] high: physics / twin",
+            "E[1/t] low: physics / twin",
+            "low / high: physics",
+            "twin",
+        ],
+        [
+            [
+                r["arena"],
+                r["class"],
+                r["tasks"],
+                f"{r['physics_high']:.6f} / {r['twin_high']:.6f}",
+                f"{r['physics_low']:.6f} / {r['twin_low']:.6f}",
+                f"{r['physics_ratio']:.4f}",
+                f"{r['twin_ratio']:.4f}",
+            ]
+            for r in shape
+        ],
+    )
     done = len(results)
     status = (
         "All planned trials are in."
@@ -917,6 +975,17 @@ def run_test(s: Settings) -> Outcome:
             "",
             "Physics trials of the committed plan, trial k with seed k; fast - slow mean with a Student-t 95 % interval; 'inside': the twin's prediction lies in the physics interval.",
             "",
+            "## A check on the misses: the shape of a task time",
+            "",
+            "A learner is paid w / t, so its choice turns on E[1/t] per circuit, which the twin "
+            "takes from the lognormal of each cell (moments matched). Over the logged physics "
+            "trials' own-circuit tasks after the first, per arena and class: E[1/t] on the "
+            "high-value circuit and on the others, in physics and by the learner tables' "
+            "lognormal of each task's own cell (`reward_shape`; in sample, so it tests the "
+            "shape, not the cells):",
+            "",
+            shape_table,
+            "",
         ]
     )
     report = Report(
@@ -924,7 +993,7 @@ def run_test(s: Settings) -> Outcome:
         "The twin among learners, out of sample: the physics",
         body,
         rows,
-        summary={"trials_saved": done, "cells": rows},
+        summary={"trials_saved": done, "cells": rows, "reward_shape": shape},
     )
     written = report.write(s.out_dir(), provenance)
     return Outcome(s.out_dir(), written, body.split("## Method")[0])
