@@ -91,6 +91,7 @@ from tavc_agents.experiments.study import (
 from tavc_agents.experiments.sweep import json_jobs, saved_results
 from tavc_agents.learners.network import Mlp, NetworkSet, NetworkTeam
 from tavc_env.scenarios import SCENARIOS
+from tavc_env.validation import is_number
 
 ALGORITHMS = ("mappo", "ippo")  # as tavc_agents.learners.torchrl_ppo.ALGORITHMS (no torch here)
 CREDITS = ("own", "team")  # as tavc_agents.learners.torchrl_ppo.CREDITS
@@ -117,6 +118,7 @@ READOUT_JOBS_DIR = "readouts"
 Row = dict[str, Any]
 Network = Mlp | NetworkSet
 """A trained actor: one network for every robot, or parameter sets (`--parameters`)."""
+DEFAULT_ENTROPY = 0.01  # smdp_ppo.PpoSettings' (checked by tests/benchmarks: one value)
 LEARNER_TEXT = {"mappo": "MAPPO (centralised critic)", "ippo": "IPPO (decentralised critic)"}
 ACTORS = {
     "shared": "one actor shared by every robot",
@@ -184,6 +186,9 @@ class Settings(ScoredSettings):
     parameters: str = "shared"
     """smdp route: shared (one actor for every robot, the contract's runs), class (one set per
     speed class) or robot (one set per robot): the ablation, saved as one network file"""
+    entropy: float = DEFAULT_ENTROPY
+    """smdp route: the entropy bonus's coefficient (another value: a search's runs, in a
+    reference folder of their own)"""
     curve_points: int = 10
     """learning-curve evaluations after the untrained one"""
     eval_seeds: int | None = None
@@ -210,7 +215,8 @@ class Settings(ScoredSettings):
         step = "_per_step" if self.discount == "step" else ""
         rows = "_all_rows" if self.rows == "all" else ""
         sets = "" if self.parameters == "shared" else f"_per_{self.parameters}"
-        return f"{name}_{self.route}{step}{rows}{sets}"
+        bonus = "" if self.entropy == DEFAULT_ENTROPY else f"_entropy{self.entropy:g}"
+        return f"{name}_{self.route}{step}{rows}{sets}{bonus}"
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -248,6 +254,13 @@ class Settings(ScoredSettings):
                     self.parameters in PARAMETERS
                     and (self.route == "smdp" or self.parameters == "shared"),
                     f"one of {', '.join(PARAMETERS)} on the smdp route; shared on pettingzoo",
+                ),
+                (
+                    "entropy",
+                    is_number(self.entropy)
+                    and 0 <= self.entropy < 10
+                    and (self.route == "smdp" or self.entropy == DEFAULT_ENTROPY),
+                    f"a number in [0, 10) on the smdp route; {DEFAULT_ENTROPY} on pettingzoo",
                 ),
                 ("curve_points", at_least(self.curve_points, 1), "an integer >= 1"),
                 ("eval_seeds", self.eval_seeds is None or at_least(self.eval_seeds, 1), ">= 1"),
@@ -293,6 +306,8 @@ class Settings(ScoredSettings):
             out.append(("rows", "all"))
         if self.parameters != "shared":
             out.append(("parameters", self.parameters))
+        if self.entropy != DEFAULT_ENTROPY:
+            out.append(("entropy", self.entropy))
         return tuple(out)
 
     def ppo(self) -> tuple[tuple[str, Any], ...]:

@@ -87,6 +87,21 @@ def test_the_smdp_route_trains_with_the_contract_ppo_and_resumes_without_trainin
     assert study.run(settings).text == outcome.text
 
 
+def test_another_entropy_bonus_is_a_search_run_in_a_folder_of_its_own(tmp_path: Path) -> None:
+    from tavc_agents.learners import smdp_ppo
+
+    assert smdp_ppo.PpoSettings().entropy == study.DEFAULT_ENTROPY  # the contract's runs' value
+    assert "entropy" not in dict(tiny(tmp_path, route="smdp").ppo())
+    search = tiny(tmp_path, route="smdp", entropy=0.03)
+    assert search.reference_name() == "deep_leaderboard_smdp_entropy0.03"
+    assert dict(search.ppo())["entropy"] == 0.03
+    for bad in (-0.1, float("nan"), "0.1"):
+        with pytest.raises(ValueError, match=r"entropy = .* is invalid; allowed: "):
+            tiny(tmp_path, route="smdp", entropy=bad)
+    with pytest.raises(ValueError, match=r"entropy = 0\.03 is invalid"):
+        tiny(tmp_path, entropy=0.03)  # the pettingzoo route has its own learner
+
+
 def test_per_class_parameters_are_saved_as_one_set_and_read_out(tmp_path: Path) -> None:
     from tavc_agents.learners.network import NetworkSet
 
