@@ -162,9 +162,22 @@ def test_every_run_is_a_row_in_order_with_both_readouts_and_its_policies() -> No
     assert "curve (greedy)" in table[0] and "greedy policy" in table[0]
     assert table[2:] == [
         "| dahl2004 | mappo | 0 | 0.00 | 0.80 at 50 | 0.80 | 0.800 | 0.300 | 0.600 | 0.400 "
-        "| stay | 0.75 (0.50-1.00) |",
-        "| dahl2004 | ippo | 0 | 0.50 | 0.90 at 50 | 0.20 | - | - | - | - | moves | - |",
+        "| stay | 0.75 (0.50-1.00) | 1.5 / 0.5 |",
+        "| dahl2004 | ippo | 0 | 0.50 | 0.90 at 50 | 0.20 | - | - | - | - | moves | - | - |",
     ]
+
+
+def test_the_long_run_follows_each_robots_chain_from_its_start() -> None:
+    """Where a sampled policy sends the team: a robot that always moves on alternates, one that
+    is absorbed stays absorbed, and a fixed start decides which of two closed classes a robot
+    ends in (a drawn start weighs both)."""
+    alternate = [[0.0, 1.0], [1.0, 0.0]]
+    absorbed = [[1.0, 0.0], [0.5, 0.5]]
+    keep = [[1.0, 0.0], [0.0, 1.0]]  # two closed classes: where it starts, it stays
+    share = study.long_run_share([alternate, absorbed, keep], starts=[0, 1, 1])
+    assert share == pytest.approx([0.5 + 1.0, 0.5 + 0.0 + 1.0], abs=1e-3)
+    drawn = study.long_run_share([keep], starts=None)
+    assert drawn == pytest.approx([0.5, 0.5])
 
 
 def test_no_saved_run_says_so() -> None:

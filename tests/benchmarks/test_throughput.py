@@ -63,6 +63,7 @@ def _rows(
                     "peak_rss_mib": 160.0,
                     "exact": True,
                 }
+                | ({"loop_us_per_tick": 0.8 * env_us} if mode == "env" else {})
             )
     return rows
 
@@ -75,6 +76,8 @@ def test_verdicts_are_ratios_to_both_yardsticks_at_six_robots() -> None:
     assert found["ratio_to_replay"] == pytest.approx(2 / 3)
     assert found["ratio_to_compiled_floor"] == pytest.approx(0.5 / 3)
     assert found["compiled_goal"].startswith("not yet")  # issue 38: >= 0.45, reported only
+    # the ceiling: the compiled floor over the loop's own time, as if the Python cost nothing
+    assert found["loop_ceiling_to_compiled_floor"] == pytest.approx(0.5 / 2.4, rel=0.01)
     _, close = study.case_findings(_rows("6", 3.0, 2.0, 3.6, compiled_us=1.5), config)
     assert close["compiled_goal"].startswith("met") and close["verdict"].startswith("PASS")
     _, slow = study.case_findings(_rows("6", 4.0, 2.0, 3.6), config)
