@@ -63,3 +63,22 @@ def test_logged_trials_are_the_committed_trials() -> None:
             if (job["arena"], job["condition"]) == (arena, condition):
                 diff = float(result["fast_share"]) - float(result["slow_share"])
                 assert diff == committed[int(job["seed"])]
+
+
+def test_the_shape_check_compares_what_a_learner_is_paid() -> None:
+    """The committed test report's check on the misses (`reward_shape`): per logged arena and
+    class, E[1/t] on the high-value circuit and the others in physics and by the learner tables'
+    lognormal; the twin's shape gives the ratio a choice turns on to within 0.002, and the
+    ratios are those of the committed logs recomputed now."""
+    report = json.loads((study.RESULTS_DIR / "twin_learners_test" / "test.json").read_text())
+    shape = report["summary"]["reward_shape"]
+    assert {(r["arena"], r["class"]) for r in shape} == {
+        (a, c) for a, _ in study.LOG_CELLS for c in ("fast", "slow")
+    }
+    for row in shape:
+        assert row["tasks"] > 10_000
+        assert abs(row["physics_ratio"] - row["twin_ratio"]) < 0.002, row
+    settings = study.Settings(stage="test", update_reference=True)
+    again = {(r["arena"], r["class"]): r for r in study.reward_shape(settings)}
+    for row in shape:
+        assert again[(row["arena"], row["class"])]["physics_ratio"] == row["physics_ratio"]
