@@ -861,7 +861,8 @@ class _History:
 # engine knows nothing of it; an arena forgotten by everyone else leaves it).
 _HISTORIES: weakref.WeakKeyDictionary[Engine, _History] = weakref.WeakKeyDictionary()
 # Attributes of a Simulation that are not its state: code, caches of other attributes, links.
-_NOT_STATE = frozenset({"config", "world", "_rng", "_observers", "_tick_args", "_bound"})
+# (the generator is fed through its state; `_bitgen` is only where in memory that state lives)
+_NOT_STATE = frozenset({"config", "world", "_rng", "_bitgen", "_observers", "_tick_args", "_bound"})
 
 
 def _arena_digest(sim: Simulation) -> str:

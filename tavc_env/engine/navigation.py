@@ -939,6 +939,29 @@ def _break_down(t: TaskArrays, i: int) -> None:
 break_down = compiled(_break_down)
 
 
+def _new_leg_speed(
+    i: int,
+    speed_noise: float,
+    speeds: np.ndarray,
+    speed_factor: np.ndarray,
+    top_speed: np.ndarray,
+    bitgen: np.ndarray,
+) -> None:
+    """Robot i starts a leg: with speed noise, its speed for the leg is its own times a factor
+    1 + `speed_noise` * N(0, 1) clipped to [0.5, 1.5], drawn from the generator `bitgen`
+    addresses (`bit_generator_calls`). The one rule for every leg: the compiled tick's (legs to
+    the sink) and `Simulation.choose`'s (legs to the source)."""
+    if speed_noise > 0.0:
+        # np.clip's value, without its cost on a scalar (the draw is never NaN)
+        factor = min(max(1.0 + speed_noise * _standard_normal_c(bitgen), 0.5), 1.5)
+        speed_factor[i] = factor
+        top_speed[i] = speeds[i] * factor
+
+
+_new_leg_speed_c = compiled(_new_leg_speed, inline=True)
+new_leg_speed = _new_leg_speed_c
+
+
 def _end_services(
     t: TaskArrays,
     now: float,
@@ -951,18 +974,15 @@ def _end_services(
 ) -> int:
     """The services due at `now` end, robot by robot. Writes the robots that completed a task
     into `done` and returns how many; a robot that starts its leg to the sink gets its speed
-    for the leg drawn anew (`speed_noise` > 0: `Simulation._new_leg`'s draw, from the
-    generator `bitgen` addresses, in robot order)."""
+    for the leg (`_new_leg_speed`, in robot order)."""
     n_done = 0
     for i in range(t.service_until.shape[0]):
         if t.service_until[i] <= now + 1e-9:
             if finish_service(t, i):
                 done[n_done] = i
                 n_done += 1
-            elif speed_noise > 0.0:
-                factor = min(max(1.0 + speed_noise * _standard_normal_c(bitgen), 0.5), 1.5)
-                speed_factor[i] = factor
-                top_speed[i] = speeds[i] * factor
+            else:
+                _new_leg_speed_c(i, speed_noise, speeds, speed_factor, top_speed, bitgen)
     return n_done
 
 

@@ -35,6 +35,7 @@ from tavc_env.engine.navigation import (
     bit_generator_calls,
     grid_scratch,
     neighbour_cell_m,
+    new_leg_speed,
     run_ticks,
     stuck_of,
 )
@@ -125,7 +126,7 @@ class Simulation:
         self._pos = np.zeros((n, 2))  # positions after the last physics step
         self._dt = config.dt
         self._tick_args: tuple[object, ...] = ()  # `TickArgs`, then the task rules' arrays
-        self._bound: tuple[object, ...] = (None,) * 8
+        self._bound: tuple[object, ...] = (None,) * 7
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
             neighbour_cell_m(config.robot_radius, config.sensing_range_m)
@@ -133,6 +134,8 @@ class Simulation:
             else 0.0
         )
         self._rng: np.random.Generator | None = None
+        self._bitgen = np.zeros(0, np.int64)  # `bit_generator_calls(rng)` from `reset` on
+        self._speed_noise = float(config.speed_noise)
         self._observers: list[Observer] = []
         self._clear_episode()
 
@@ -180,6 +183,7 @@ class Simulation:
             )
         cfg = self.config
         self._rng = rng
+        self._bitgen = bit_generator_calls(rng)  # how compiled code draws from it
         self.world = World(cfg)
         self.tasks = TaskCycle(cfg)
         n, m = cfg.n_robots, cfg.n_circuits
@@ -207,11 +211,14 @@ class Simulation:
         self._new_leg(robot)
 
     def _new_leg(self, robot: int) -> None:
-        noise = self.config.speed_noise
-        if noise > 0:
-            # np.clip's value, without its cost on a scalar (the draw is never NaN)
-            self.speed_factor[robot] = min(max(1.0 + noise * self.rng.standard_normal(), 0.5), 1.5)
-            self.top_speed[robot] = self.speeds[robot] * self.speed_factor[robot]
+        new_leg_speed(
+            robot,
+            self._speed_noise,
+            self.speeds,
+            self.speed_factor,
+            self.top_speed,
+            self._bitgen,
+        )
 
     def break_down(self, robot: int) -> None:
         if self.tasks.phase[robot] == _BROKEN:
@@ -297,10 +304,10 @@ class Simulation:
             arrived=self._hits,
             stalled=self._stalled,
             done=self._done,
-            speed_noise=float(self.config.speed_noise),
+            speed_noise=self._speed_noise,
             speeds=self.speeds,
             speed_factor=self.speed_factor,
-            bitgen=bit_generator_calls(self.rng),
+            bitgen=self._bitgen,
             progress_pos=self._progress_pos,
             everyone=np.arange(self.config.n_robots),
             **dict(zip(_GRID_FIELDS, grid_scratch(self.config.n_robots))),
@@ -316,7 +323,6 @@ class Simulation:
             self.top_speed,
             self._anchor,
             self._progress_pos,
-            self._rng,  # (the compiled tick draws from it through its addresses)
         )
 
     def _ticks(self, out: Advance, max_ticks: int) -> int:
@@ -333,7 +339,6 @@ class Simulation:
             or bound[4] is not self.top_speed
             or bound[5] is not self._anchor
             or bound[6] is not self._progress_pos
-            or bound[7] is not self._rng
         ):
             self._bind()
         ran, stage, n_done, n_stalled, event, progressed, next_service, progress_s = run_ticks(
