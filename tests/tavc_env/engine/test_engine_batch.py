@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -163,6 +164,31 @@ def test_compiled_tick_is_the_physics_of_its_commands(preset: str, lanes: int | 
     assert np.array_equal(replayed, recorded.positions())
 
 
+def _random_tick(
+    rng: np.random.Generator,
+    pos: np.ndarray,
+    present: np.ndarray,
+    radius: float,
+    sensing: float,
+    turn: float,
+    w: float,
+    h: float,
+) -> tuple[tuple[Any, ...], np.ndarray, np.ndarray]:
+    """One tick of random headings, targets, moving flags and speeds for robots at `pos`: the
+    arguments every steering function shares, and `steer_all`'s commands for them (the
+    reference the faster ones must equal)."""
+    n = len(pos)
+    heading = rng.uniform(-np.pi, np.pi, n)
+    target = pos + rng.normal(scale=2.0, size=(n, 2))
+    moving = rng.random(n) < 0.8
+    speed = rng.uniform(0.2, 0.3, n)
+    common = (pos, heading, target, moving, speed, present, radius, sensing, 0.0, False)
+    common += (turn, w, h)
+    a_v, a_h = np.zeros((n, 2)), np.zeros(n)
+    steer_all(*common, a_v, a_h)
+    return common, a_v, a_h
+
+
 def test_the_grid_kept_from_tick_to_tick_gives_exactly_the_all_pairs_commands() -> None:
     """The compiled tick keeps the grid's sorted order from one tick to the next
     (`steer_grid_into`): robots moving between cells, leaving and re-entering the floor, and
@@ -181,15 +207,8 @@ def test_the_grid_kept_from_tick_to_tick_gives_exactly_the_all_pairs_commands() 
         if tick == 150:
             scratch[3][:] = rng.permutation(n)  # another team's order, as many robots held
             scratch[6][0] = int(present.sum())
-        heading = rng.uniform(-np.pi, np.pi, n)
-        target = pos + rng.normal(scale=2.0, size=(n, 2))
-        moving = rng.random(n) < 0.8
-        speed = rng.uniform(0.2, 0.3, n)
-        a_v, a_h = np.zeros((n, 2)), np.zeros(n)
+        common, a_v, a_h = _random_tick(rng, pos, present, radius, sensing, turn, w, h)
         b_v, b_h = np.zeros((n, 2)), np.zeros(n)
-        common = (pos, heading, target, moving, speed, present, radius, sensing, 0.0, False)
-        common += (turn, w, h)
-        steer_all(*common, a_v, a_h)
         steer_grid_into(*common, b_v, b_h, cell, *scratch[:7])
         assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), tick
 
@@ -234,16 +253,9 @@ def test_neighbour_lists_kept_over_ticks_give_exactly_the_all_pairs_commands(
         pos += rng.normal(scale=0.02 if tick % 40 else 2.0, size=(n, 2))
         if tick % 23 == 0:
             present = rng.random(n) < 0.85
-        heading = rng.uniform(-np.pi, np.pi, n)
-        target = pos + rng.normal(scale=2.0, size=(n, 2))
-        moving = rng.random(n) < 0.8
-        speed = rng.uniform(0.2, 0.3, n)
-        a_v, a_h = np.zeros((n, 2)), np.zeros(n)
+        common, a_v, a_h = _random_tick(rng, pos, present, radius, sensing, turn, w, h)
         b_v, b_h = np.zeros((n, 2)), np.zeros(n)
-        common = (pos, heading, target, moving, speed, present, radius, sensing, 0.0, False)
-        common += (turn, w, h)
         anchor_before = scratch[9].copy()
-        steer_all(*common, a_v, a_h)
         steer_near_into(*common, b_v, b_h, cell, *scratch)
         made += not np.array_equal(anchor_before, scratch[9])
         assert np.array_equal(a_v, b_v) and np.array_equal(a_h, b_h), tick
