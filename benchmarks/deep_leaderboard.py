@@ -1040,10 +1040,16 @@ def long_run_share(
 LONG_RUN_DECISIONS = 2000
 
 
+def policy_of(saved: Mapping[str, Mapping[str, Any]]) -> Any:
+    """A run's whole sampled policy (each robot's probabilities after each circuit), which every
+    read-out saves alike; None while none is saved."""
+    return next((ev["probabilities"] for ev in saved.values()), None)
+
+
 def long_run_text(saved: Mapping[str, Mapping[str, Any]], scenario: Any) -> str:
     """`long_run_share` of a run's saved read-out as "a / b / c" robots; "-" while none is
     saved."""
-    probabilities = next((ev["probabilities"] for ev in saved.values()), None)
+    probabilities = policy_of(saved)
     if probabilities is None:
         return "-"
     starts = dict(scenario.arena).get("start_circuits")
@@ -1053,7 +1059,7 @@ def long_run_text(saved: Mapping[str, Mapping[str, Any]], scenario: Any) -> str:
 def stay_probability(saved: Mapping[str, Mapping[str, Any]]) -> str:
     """How likely the sampled policy goes back to the circuit it just served, over every robot
     and circuit: the mean, and the lowest and highest; "-" while no read-out is saved."""
-    probabilities = next((ev["probabilities"] for ev in saved.values()), None)
+    probabilities = policy_of(saved)
     if probabilities is None:
         return "-"
     stays = [p[c][c] for p in probabilities for c in range(len(p))]
@@ -1075,10 +1081,7 @@ def learned(
             if first is None:
                 continue
             choices = results[run_key(first)]["choices"]
-            probabilities = next(
-                (ev["probabilities"] for ev in readouts_of(first, evaluations or {}).values()),
-                None,
-            )
+            probabilities = policy_of(readouts_of(first, evaluations or {}))
             start = dict(SCENARIOS[name].arena).get("start_circuits")
 
             rows = [

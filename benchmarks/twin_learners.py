@@ -432,13 +432,19 @@ def trial_measures(
     return out
 
 
-def run_audit(s: Settings) -> Outcome:
-    out = s.out_dir()
+def physics_logs(s: Settings) -> dict[tuple[str, str], list[Mapping[str, Any]]]:
+    """The logged physics trials' results (`--stage logs`), by (arena, condition)."""
     physics: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
     for record in load_trials(s.logs_dir()):
         job = record["record"]
         if job.get("engine", "physics") == "physics":
             physics.setdefault((job["arena"], job["condition"]), []).append(record["result"])
+    return physics
+
+
+def run_audit(s: Settings) -> Outcome:
+    out = s.out_dir()
+    physics = physics_logs(s)
     arenas = list(dict.fromkeys(a for a, _ in LOG_CELLS))
     starts_jobs = [
         StartRun(a, k, START_HOURS, arena_runs.digest(a))
@@ -833,17 +839,19 @@ def reward_shape(s: Settings) -> list[Row]:
     physics trials: E[1/t] on the high-value circuit and on the others, in physics and by the
     learner tables' lognormal of each task's own cell, and the ratio low / high that the choice
     turns on. In sample (the tables come from these logs): it tests the shape, not the cells."""
-    physics: dict[str, list[Mapping[str, Any]]] = {}
-    for record in load_trials(s.logs_dir()):
-        job = record["record"]
-        if job.get("engine", "physics") == "physics":
-            physics.setdefault(job["arena"], []).append(record["result"])
+    physics = physics_logs(s)
     rows: list[Row] = []
     for arena in dict.fromkeys(a for a, _ in LOG_CELLS):
         tables = learned_tables(arena, s)
         config = arena_runs.arena_config(arena)
         high = int(np.argmax([c.value for c in config.circuits]))
-        tasks = [t for r in physics.get(arena, []) for t in trial_tasks(arena, r)]
+        tasks = [
+            t
+            for (logged, _), results in physics.items()
+            if logged == arena
+            for r in results
+            for t in trial_tasks(arena, r)
+        ]
         for cls in tables.classes:
             own = [t for t in tasks if _own(t, cls)]
             row: Row = {"arena": arena, "class": cls, "tasks": len(own)}
