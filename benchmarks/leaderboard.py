@@ -55,7 +55,7 @@ from tavc_agents.evaluation import (
     references,
     value_per_hour,
 )
-from tavc_agents.experiments.files import read_report
+from tavc_agents.experiments.files import read_csv, read_report
 from tavc_agents.experiments.registry import allocator_names
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
@@ -75,6 +75,7 @@ FIGURE = "leaderboard.png"
 PANELS_PER_ROW = 4  # eight panels in two rows stay readable at a page's width
 Row = dict[str, Any]
 SUBMITTED = " (submitted)"  # the mark of a row evaluated elsewhere
+DEEP_REPORT = "deep_leaderboard.json"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -96,6 +97,9 @@ class Settings(EvaluationSettings, ScoredSettings):
     rows: tuple[Path, ...] = ()
     """leaderboard rows written by `tavc evaluate --out` (or `Evaluation.save`), shown beside the
     allocators; each must hold every episode of this leaderboard"""
+    deep: tuple[Path, ...] = ()
+    """report folders of `benchmarks/deep_leaderboard.py` (trained networks, scored on the same
+    evaluation seeds), shown beside the allocators on the scenarios they trained on"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -114,6 +118,11 @@ class Settings(EvaluationSettings, ScoredSettings):
                     all(Path(r).is_file() for r in self.rows),
                     "files written by tavc evaluate --out",
                 ),
+                (
+                    "deep",
+                    all((Path(d) / DEEP_REPORT).is_file() for d in self.deep),
+                    f"folders holding a {DEEP_REPORT} written by benchmarks/deep_leaderboard.py",
+                ),
             ],
         )
 
@@ -121,6 +130,7 @@ class Settings(EvaluationSettings, ScoredSettings):
         # only when given: reports without submissions record what they always did
         extra = {"plugins": list(self.plugins)} if self.plugins else {}
         extra |= {"rows": [str(r) for r in self.rows]} if self.rows else {}
+        extra |= {"deep": [str(d) for d in self.deep]} if self.deep else {}
         return {**super().recorded(), **extra}
 
 
@@ -187,6 +197,100 @@ def submitted_rows(s: Settings, refs: Mapping[str, Mapping[str, float]]) -> list
     return rows
 
 
+@dataclass(frozen=True)
+class DeepRow:
+    """A deep learner of a `deep_leaderboard.py` report: its cells (scenario -> IQM over training
+    seeds of each network's mean score, interval, read-out) and its training cost."""
+
+    name: str
+    cells: dict[str, tuple[float, float, float, str]]
+    runs: int
+    decisions_per_run: float
+    cpu_h_per_run: float
+    decisions_per_cpu_s: float
+
+
+def deep_rows(s: Settings) -> list[DeepRow]:
+    """The learners of every `--deep` folder, on this leaderboard's scenarios; a report scored on
+    other episodes (seeds or length) than this leaderboard's is refused."""
+    out = []
+    for folder in map(Path, s.deep):
+        report = read_report(folder / DEEP_REPORT)
+        settings = report["metadata"]["settings"]
+        if (settings["eval_seeds_text"], settings["episode_text"]) != (
+            s.seeds_text,
+            s.episode_text,
+        ):
+            raise ValueError(
+                f"deep: {folder} was scored on {settings['eval_seeds_text']} evaluation seeds of "
+                f"{settings['episode_text']} episodes; allowed: this leaderboard's "
+                f"({s.seeds_text} of {s.episode_text})"
+            )
+        runs = list(read_csv(folder / "deep_leaderboard.csv"))
+        for algorithm in settings["algorithms"]:
+            cells = {
+                name: (v["iqm"], v["ci"][0], v["ci"][1], v["readout"])
+                for name in s.scenarios
+                for v in [report["summary"].get(f"{name}/{algorithm}")]
+                if v is not None
+            }
+            mine = [r for r in runs if r["algorithm"] == algorithm and r["scenario"] in cells]
+            if not mine:
+                continue
+            decisions = float(np.mean([float(r["decisions"]) for r in mine]))
+            train_cpu_s = float(np.mean([float(r["train_cpu_s"]) for r in mine]))
+            out.append(
+                DeepRow(
+                    name=f"{algorithm} [{folder.name}]",
+                    cells=cells,
+                    runs=len(mine),
+                    decisions_per_run=decisions,
+                    cpu_h_per_run=float(np.mean([float(r["cpu_s"]) for r in mine])) / 3600.0,
+                    decisions_per_cpu_s=decisions / train_cpu_s,
+                )
+            )
+    return out
+
+
+def deep_section(s: Settings, deep: Sequence[DeepRow]) -> str:
+    """The deep learners' table beside the allocators', with what a cell means and what a run cost."""
+    header = [
+        "deep learner",
+        *(SCENARIOS[n].id for n in s.scenarios),
+        "runs",
+        "decisions per run",
+        "CPU h per run",
+        "training decisions per CPU s",
+    ]
+    table = [
+        [
+            d.name,
+            *(
+                f"{c[0]:.2f} [{c[1]:.2f}, {c[2]:.2f}] ({c[3]})" if c else "-"
+                for n in s.scenarios
+                for c in [d.cells.get(n)]
+            ),
+            d.runs,
+            f"{d.decisions_per_run:,.0f}",
+            f"{d.cpu_h_per_run:.2f}",
+            f"{d.decisions_per_cpu_s:,.0f}",
+        ]
+        for d in deep
+    ]
+    return (
+        "\n\nDeep learners beside the allocators (`--deep`: reports of "
+        "`benchmarks/deep_leaderboard.py`, networks trained offline and then scored on the same "
+        "evaluation seeds and episode length): a cell is the interquartile mean over training "
+        "seeds of each final network's mean normalised score over those seeds [95 % percentile "
+        "bootstrap over training seeds], read out as named (the read-out the learner's own "
+        "training-side episodes chose: `sampled` is the policy as it acts, `greedy` its argmax); "
+        "- where it was not trained. Its variability is across training runs, the allocators' "
+        "across episodes, so compare the points, and the intervals within a table. Cost: CPU "
+        "time of a whole run (training, learning curve, its own evaluation), over the runs "
+        "shown.\n\n" + markdown_table(header, table)
+    )
+
+
 def rows_of(
     specs_run: Sequence[TrialSpec],
     results: Mapping[str, TrialResult],
@@ -210,7 +314,7 @@ def rows_of(
     return rows
 
 
-def report(s: Settings, rows: list[Row]) -> Report:
+def report(s: Settings, rows: list[Row], deep: Sequence[DeepRow] = ()) -> Report:
     rng = np.random.default_rng(s.seed)
     names = list(dict.fromkeys(r["allocator"] for r in rows))
     cells: dict[tuple[str, str], tuple[float, float, float]] = {}
@@ -248,6 +352,15 @@ def report(s: Settings, rows: list[Row]) -> Report:
         "in all (one process); a row marked submitted was evaluated elsewhere by "
         "`tavc evaluate` on the same episodes.\n\n" + markdown_table(header, table)
     )
+    if deep:
+        body += deep_section(s, deep)
+        summary["deep"] = {
+            d.name: {
+                name: {"iqm": c[0], "ci": [c[1], c[2]], "readout": c[3]}
+                for name, c in d.cells.items()
+            }
+            for d in deep
+        }
     for path in s.rows:  # where each submitted row was computed, from the row itself
         row = read_row(path)
         body += (
@@ -258,7 +371,10 @@ def report(s: Settings, rows: list[Row]) -> Report:
     rep = Report(
         "leaderboard", "Leaderboard: every allocator on every scenario", body, rows, summary
     )
-    rep.figures.append((FIGURE, lambda path: draw(path, order, s.scenarios, cells)))
+    for d in deep:
+        cells.update({(d.name, n): c[:3] for n, c in d.cells.items()})
+    shown = [*order, *(d.name for d in deep)]
+    rep.figures.append((FIGURE, lambda path: draw(path, shown, s.scenarios, cells)))
     return rep
 
 
@@ -267,16 +383,22 @@ Cells = Mapping[tuple[str, str], tuple[float, float, float]]
 
 
 def ranked(names: Sequence[str], cells: Cells) -> list[str]:
-    """The allocators, best suite IQM first (ties in `names`' order)."""
-    return sorted(names, key=lambda a: -cells[(a, "suite")][0])
+    """The rows with a suite cell (the allocators), best suite IQM first (ties in `names`'
+    order), then the others (the deep learners) in `names`' order."""
+    suite = sorted(
+        (a for a in names if (a, "suite") in cells), key=lambda a: -cells[(a, "suite")][0]
+    )
+    return suite + [a for a in names if (a, "suite") not in cells]
 
 
 def cells_of(summary: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> tuple[list[str], Cells]:
     """The scenarios and the cells of a written report's summary (`leaderboard.json`), for
-    `--figure-only`: the numbers as the table reports them, nothing recomputed."""
+    `--figure-only`: the numbers as the table reports them, nothing recomputed; the deep
+    learners' cells (only on the scenarios they trained on) under their names too."""
+    entries = {k: v for k, v in summary.items() if k != "deep"} | dict(summary.get("deep", {}))
     cells = {
-        (allocator, key): (float(v["iqm"]), float(v["ci"][0]), float(v["ci"][1]))
-        for allocator, entry in summary.items()
+        (row, key): (float(v["iqm"]), float(v["ci"][0]), float(v["ci"][1]))
+        for row, entry in entries.items()
         for key, v in entry.items()
     }
     scenarios = [key for key in next(iter(summary.values())) if key != "suite"]
@@ -284,8 +406,9 @@ def cells_of(summary: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> tuple[li
 
 
 def draw(path: Path, order: Sequence[str], scenarios: Sequence[str], cells: Cells) -> None:
-    """One panel per scenario and one for the suite, `PANELS_PER_ROW` to a row: each allocator's
-    IQM with its interval."""
+    """One panel per scenario and one for the suite, `PANELS_PER_ROW` to a row: each row's IQM
+    with its interval, where it has one (a deep learner only on the scenarios it trained on, in
+    another colour)."""
     keys = [*scenarios, "suite"]
     ncols = min(PANELS_PER_ROW, len(keys))
     nrows = math.ceil(len(keys) / ncols)
@@ -301,14 +424,22 @@ def draw(path: Path, order: Sequence[str], scenarios: Sequence[str], cells: Cell
     for ax in panels[len(keys) :]:  # a last row left short
         ax.set_visible(False)
     for k, (ax, key) in enumerate(zip(panels, keys)):
-        values = np.array([cells[(a, key)] for a in order])
-        ax.errorbar(
-            values[:, 0],
-            y,
-            xerr=[values[:, 0] - values[:, 1], values[:, 2] - values[:, 0]],
-            fmt="o",
-            ms=4,
-        )
+        for rows, colour in (
+            ([a for a in order if (a, "suite") in cells], "C0"),
+            ([a for a in order if (a, "suite") not in cells], "C3"),
+        ):
+            have = [a for a in rows if (a, key) in cells]
+            if not have:
+                continue
+            values = np.array([cells[(a, key)] for a in have])
+            ax.errorbar(
+                values[:, 0],
+                [order.index(a) for a in have],
+                xerr=[values[:, 0] - values[:, 1], values[:, 2] - values[:, 0]],
+                fmt="o",
+                ms=4,
+                color=colour,
+            )
         ax.axvline(0.0, color="grey", lw=0.5)
         ax.axvline(1.0, color="grey", lw=0.5, ls="--")
         title = "suite" if key == "suite" else SCENARIOS[key].id.removeprefix("tavc/")
@@ -333,12 +464,13 @@ def run(settings: Settings) -> Outcome:
     if s.figure_only:
         summary = read_report(redraw_source(out / "leaderboard.json"))["summary"]
         scenarios, cells = cells_of(summary)
-        order = ranked(list(summary), cells)
+        order = ranked([k for k in summary if k != "deep"] + list(summary.get("deep", {})), cells)
         return redraw(out, FIGURE, lambda path: draw(path, order, scenarios, cells))
     refs = references(s.references)
     jobs = specs(s)
+    deep = deep_rows(s)  # (read first: a refused folder stops the run before any episode)
     results, provenance = s.run_trials(jobs)
-    rep = report(s, rows_of(jobs, results, refs) + submitted_rows(s, refs))
+    rep = report(s, rows_of(jobs, results, refs) + submitted_rows(s, refs), deep)
     written = rep.write(out, provenance)
     return Outcome(out, written, rep.body)
 

@@ -89,3 +89,26 @@ def test_figure_only_redraws_the_committed_figure_two_rows_of_four(tmp_path: Pat
     width, height = check_figure_only(study.run, study.Settings, committed, study.FIGURE, tmp_path)
     # eight panels in two rows: readable at a page's width (one row of eight was 2112 x 516)
     assert width <= 1300 and height > 0.6 * width
+
+
+def test_committed_deep_reports_join_beside_the_allocators_as_reported() -> None:
+    """`--deep`: a deep_leaderboard report's headline cells, as its own summary has them, on the
+    scenarios it trained on and nowhere else; a report of other episodes is refused."""
+    folder = RESULTS_DIR / "deep_leaderboard_smdp_entropy0.03"
+    own = json.loads((folder / study.DEEP_REPORT).read_text())["summary"]
+    s = study.Settings(scenarios=("dahl2004", "bad_start", "three_circuits"), deep=(folder,))
+    (row,) = study.deep_rows(s)
+    assert row.runs >= 10 and row.decisions_per_run >= 1_000_000
+    assert set(row.cells) == {n for n in s.scenarios if f"{n}/mappo" in own}
+    for name, (iqm, low, high, readout) in row.cells.items():
+        assert (iqm, [low, high], readout) == (
+            own[f"{name}/mappo"]["iqm"],
+            own[f"{name}/mappo"]["ci"],
+            own[f"{name}/mappo"]["readout"],
+        )
+    text = study.deep_section(s, [row])
+    assert f"| {row.name} |" in text and "(greedy)" in text
+    with pytest.raises(ValueError, match="was scored on all evaluation seeds"):
+        study.deep_rows(study.Settings(scenarios=("bad_start",), seeds=2, deep=(folder,)))
+    with pytest.raises(ValueError, match="deep"):
+        study.Settings(deep=(RESULTS_DIR / "leaderboard",))
