@@ -185,7 +185,25 @@ ARENAS: Mapping[str, Mapping[str, Any]] = {
     "dahl2004_passing": {"preset": "dahl2004_passing"},
 }
 """Arena name -> `tavc_env.parallel_env` keyword arguments (a preset and its overrides)."""
-MAPPED = tuple(a for a in ARENAS if a != "dahl2004_passing")
+
+
+def passing_lane_arena(lane: float, low_value: float = 2000.0) -> dict[str, Any]:
+    """`dahl2004_passing` with the low-value circuit's lane `lane` times the high-value lane's
+    length (its source moved toward its sink; the sink, the queues and all else kept), its
+    value `low_value`: the family of the search for the paper's condition
+    (`benchmarks/twin_learners.py --stage family`)."""
+    high, low = make_config("dahl2004_passing").circuits
+    source = (low.source[0], low.sink[1] + lane * (low.source[1] - low.sink[1]))
+    shortened = dataclasses.replace(low, source=source, value=low_value)
+    return {"preset": "dahl2004_passing", "circuits": (high, shortened)}
+
+
+SEARCH_LANES = (1.0, 0.85, 0.7, 0.55)
+"""the search's lane lengths, low-value over high-value (its rule: the differentiation page)"""
+SEARCH_ARENAS = tuple(f"passing_lane{lane:g}" for lane in SEARCH_LANES)
+"""the search's arenas at their first values (2200 / 2000), where their tables are measured"""
+ARENAS = {**ARENAS, **{a: passing_lane_arena(lane) for a, lane in zip(SEARCH_ARENAS, SEARCH_LANES)}}
+MAPPED = tuple(a for a in ARENAS if a not in ("dahl2004_passing", *SEARCH_ARENAS))
 """the arenas of the committed map; `dahl2004_passing` has its own decisive test
 (`benchmarks/passing.py`), which runs its cells through this module's jobs"""
 

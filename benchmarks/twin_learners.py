@@ -73,7 +73,7 @@ from tavc_env.twin import (
 )
 
 Row = dict[str, Any]
-Stage = Literal["logs", "audit", "predict", "test"]
+Stage = Literal["logs", "audit", "predict", "test", "family"]
 
 
 # -- the learners ---------------------------------------------------------------------------------
@@ -1007,6 +1007,131 @@ def run_test(s: Settings) -> Outcome:
     return Outcome(s.out_dir(), written, body.split("## Method")[0])
 
 
+# -- stage 5: the search for the paper's condition (its rule: docs/results/differentiation.md) ------
+SEARCH_PREMIUM = 1.1
+"""the high-value circuit's premium per second of task time the search's values keep (2200 /
+2000 on equal lanes)"""
+FAMILY_TABLE_SEEDS = (0, 1, 2)
+FAMILY_TABLE_HOURS = 1.0
+
+
+def split_times(tables: InterferenceTables) -> tuple[float, float]:
+    """The mean task time of the whole team on the high-value circuit (0) and on the low-value
+    one (1) in the 3 + 3 split: one class on each, both ways round (each class alone in its own
+    cell, every robot weighted alike)."""
+    classes, team = tables.classes, tables.team
+
+    def alone(circuit: int, k: int) -> float:
+        counts = tuple(n if j == k else 0 for j, n in enumerate(team))
+        return tables.cell(circuit, counts, classes[k]).mean_s
+
+    def split(circuit: int) -> float:
+        return sum(n * alone(circuit, k) for k, n in enumerate(team)) / sum(team)
+
+    return split(0), split(1)
+
+
+def low_value_of(tables: InterferenceTables) -> float:
+    """The search's value of the low-value circuit: the high-value one's 2200 over
+    `SEARCH_PREMIUM`, scaled by the split's task times (low over high), rounded to 10."""
+    t_high, t_low = split_times(tables)
+    return float(round(2200.0 / SEARCH_PREMIUM * t_low / t_high, -1))
+
+
+def fixed_ratios(tables: InterferenceTables) -> dict[str, float]:
+    """Per class R = task time on the high-value circuit over the low-value one under fixed
+    allocations: the mean over the mixed cells of 1 + 2 and 2 + 1 robots (the same crowd on
+    both circuits)."""
+    return {
+        cls: float(
+            np.mean(
+                [
+                    tables.cell(0, counts, cls).mean_s / tables.cell(1, counts, cls).mean_s
+                    for counts in ((1, 2), (2, 1))
+                ]
+            )
+        )
+        for cls in tables.classes
+    }
+
+
+def run_family(s: Settings) -> Outcome:
+    """The search's arenas measured in physics, no learner: each arena's fixed-allocation
+    tables, the low-value circuit's value the rule gives, and R per class under fixed
+    allocations."""
+    jobs = [
+        arena_runs.TablesJob(a, FAMILY_TABLE_SEEDS, FAMILY_TABLE_HOURS, arena_runs.digest(a))
+        for a in arena_runs.SEARCH_ARENAS
+    ]
+    measured, provenance = s.run_jobs(jobs, arena_runs.TABLES, "tables")
+    rows: list[Row] = []
+    for job, lane in zip(jobs, arena_runs.SEARCH_LANES):
+        tables = InterferenceTables.from_dict(measured[arena_runs.TABLES.key(job)])
+        t_high, t_low = split_times(tables)
+        ratios = fixed_ratios(tables)
+        order = "R_fast < R_slow" if ratios["fast"] < ratios["slow"] else "R_fast >= R_slow"
+        rows.append(
+            {
+                "arena": job.arena,
+                "lane": lane,
+                "t_high_s": t_high,
+                "t_low_s": t_low,
+                "low_value": low_value_of(tables),
+                **{f"R_{cls}": r for cls, r in ratios.items()},
+                "fixed_order": order,
+            }
+        )
+    body = family_body(rows)
+    report = Report(
+        "family",
+        "The search's arenas in physics, before any learner: values and R under fixed allocations",
+        body,
+        rows,
+        summary={"arenas": rows, "settings": s.recorded()},
+    )
+    written = report.write(s.out_dir(), provenance)
+    return Outcome(s.out_dir(), written, body)
+
+
+def family_body(rows: Sequence[Row]) -> str:
+    header = [
+        "arena",
+        "low lane / high lane",
+        "3 + 3 split: t high, t low (s)",
+        "low-value circuit's w",
+        "R fast (fixed)",
+        "R slow (fixed)",
+        "under fixed allocations",
+    ]
+    table = markdown_table(
+        header,
+        [
+            [
+                r["arena"],
+                f"{r['lane']:g}",
+                f"{r['t_high_s']:.1f}, {r['t_low_s']:.1f}",
+                f"{r['low_value']:.0f}",
+                f"{r['R_fast']:.3f}",
+                f"{r['R_slow']:.3f}",
+                r["fixed_order"],
+            ]
+            for r in rows
+        ],
+    )
+    return (
+        "The search for the paper's condition (its rule, committed before this ran: "
+        "docs/results/differentiation.md) varies the passing arena's low-value lane. This stage "
+        "measures each arena in physics with fixed allocations only (no learner has run on any "
+        f"of them): the twin's tables ({len(FAMILY_TABLE_SEEDS)} seeds x "
+        f"{FAMILY_TABLE_HOURS:g} h per allocation), the 3 + 3 split's mean task times on each "
+        "circuit, the low-value circuit's value that keeps the high-value one's premium per "
+        f"second at {SEARCH_PREMIUM:g} (2200 / {SEARCH_PREMIUM:g} x t low / t high, rounded to "
+        "10), and each class's R = t(high) / t(low) in the mixed cells (1 + 2 and 2 + 1 robots, "
+        "the same crowd on both circuits). The paper's direction needs R_fast < R_slow among "
+        "moving learners; these are the fixed-allocation values, before any learner.\n\n" + table
+    )
+
+
 # -- settings ---------------------------------------------------------------------------------------
 @dataclass(frozen=True, kw_only=True)
 class Settings(StudySettings):
@@ -1025,7 +1150,8 @@ class Settings(StudySettings):
 
     stage: Stage = "logs"
     """logs (physics task logs), audit (learner tables and the audit), predict (pre-registered
-    out-of-sample predictions) or test (their physics)"""
+    out-of-sample predictions), test (their physics) or family (the search's arenas, measured in
+    physics without learners)"""
     log_trials: int = 0
     """logged physics trials per cell (0: `LOG_CELLS`' numbers)"""
     twin_log_trials: int = 20
@@ -1075,9 +1201,11 @@ class Settings(StudySettings):
         )
 
     def reference_name(self) -> str:
-        return {"predict": "twin_learners_prediction", "test": "twin_learners_test"}.get(
-            self.stage, "twin_learners"
-        )
+        return {
+            "predict": "twin_learners_prediction",
+            "test": "twin_learners_test",
+            "family": "twin_search",
+        }.get(self.stage, "twin_learners")
 
     def recorded(self) -> dict[str, Any]:
         sizes = {
@@ -1085,6 +1213,7 @@ class Settings(StudySettings):
             "audit": "log_trials twin_log_trials twin_trials start_runs",
             "predict": "twin_trials min_physics max_physics",
             "test": "prediction=prediction_name",
+            "family": "",
         }[self.stage]
         return self.recorded_of(f"stage {sizes} convergence_h measured_h seed")
 
@@ -1109,7 +1238,7 @@ class Settings(StudySettings):
         return here if here.is_dir() else RESULTS_DIR / "twin_learners" / "logs"
 
 
-STAGES: tuple[Stage, ...] = ("logs", "audit", "predict", "test")
+STAGES: tuple[Stage, ...] = ("logs", "audit", "predict", "test", "family")
 
 
 # -- stage 1: the logs ------------------------------------------------------------------------------
@@ -1139,6 +1268,8 @@ def run(settings: Settings) -> Outcome:
         return run_audit(s)
     if s.stage == "predict":
         return run_predict(s)
+    if s.stage == "family":
+        return run_family(s)
     return run_test(s)
 
 
