@@ -202,8 +202,24 @@ SEARCH_LANES = (1.0, 0.85, 0.7, 0.55)
 """the search's lane lengths, low-value over high-value (its rule: the differentiation page)"""
 SEARCH_ARENAS = tuple(f"passing_lane{lane:g}" for lane in SEARCH_LANES)
 """the search's arenas at their first values (2200 / 2000), where their tables are measured"""
-ARENAS = {**ARENAS, **{a: passing_lane_arena(lane) for a, lane in zip(SEARCH_ARENAS, SEARCH_LANES)}}
-MAPPED = tuple(a for a in ARENAS if a not in ("dahl2004_passing", *SEARCH_ARENAS))
+SEARCH_VALUES = (2000.0, 2000.0, 2000.0, 1990.0)
+"""the low-value circuit's value in each of the search's arenas, as its rule computed them from
+the arenas' fixed-allocation tables (benchmarks/results/twin_search/family.md)"""
+SEARCH_LEARNER_ARENAS = tuple(
+    f"passing_lane{lane:g}_w{w:g}" for lane, w in zip(SEARCH_LANES, SEARCH_VALUES)
+)
+"""the search's arenas with those values: where its learners run"""
+ARENAS = {
+    **ARENAS,
+    **{a: passing_lane_arena(lane) for a, lane in zip(SEARCH_ARENAS, SEARCH_LANES)},
+    **{
+        a: passing_lane_arena(lane, w)
+        for a, lane, w in zip(SEARCH_LEARNER_ARENAS, SEARCH_LANES, SEARCH_VALUES)
+    },
+}
+MAPPED = tuple(
+    a for a in ARENAS if a not in ("dahl2004_passing", *SEARCH_ARENAS, *SEARCH_LEARNER_ARENAS)
+)
 """the arenas of the committed map; `dahl2004_passing` has its own decisive test
 (`benchmarks/passing.py`), which runs its cells through this module's jobs"""
 

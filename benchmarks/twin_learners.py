@@ -73,7 +73,7 @@ from tavc_env.twin import (
 )
 
 Row = dict[str, Any]
-Stage = Literal["logs", "audit", "predict", "test", "family"]
+Stage = Literal["logs", "audit", "predict", "test", "family", "search"]
 
 
 # -- the learners ---------------------------------------------------------------------------------
@@ -879,7 +879,7 @@ def run_test(s: Settings) -> Outcome:
         LogTrial(
             c["arena"],
             c["condition"],
-            k,
+            int(c.get("first_seed", 0)) + k,
             s.convergence_h,
             s.measured_h,
             arena_runs.digest(c["arena"]),
@@ -1132,6 +1132,237 @@ def family_body(rows: Sequence[Row]) -> str:
     )
 
 
+SEARCH_CONDITIONS = ("softmax_T0.002", "softmax_T0.005")
+"""the search map's learners (the rule's 8 cells: these x the four arenas)"""
+SEARCH_LOG_CONDITION = "softmax_T0.005"
+SEARCH_LOG_TRIALS = 30
+"""physics learner trials per arena that the learner tables are measured from (seeds 0-29)"""
+SEARCH_TWIN_TRIALS = 2000
+"""batched twin trials per cell of the map"""
+SEARCH_FIRST_SEED = 20000
+"""the first seed of a pre-registered cell's physics: fresh, never a calibration trial's"""
+SEARCH_MAX_PHYSICS = 3000
+
+
+def search_log_jobs(s: Settings) -> list[LogTrial]:
+    """The search's calibration: physics learner trials in each of its arenas, seed by seed."""
+    return [
+        LogTrial(a, SEARCH_LOG_CONDITION, k, s.convergence_h, s.measured_h, arena_runs.digest(a))
+        for k in range(s.log_trials or SEARCH_LOG_TRIALS)
+        for a in arena_runs.SEARCH_LEARNER_ARENAS
+    ]
+
+
+def family_tables(s: Settings, table_arena: str) -> InterferenceTables:
+    """An arena's fixed-allocation tables as the family stage measured them."""
+    here = s.out_dir() / "tables" / f"tables_{table_arena}.json"
+    path = here if here.exists() else RESULTS_DIR / "twin_search" / "tables" / here.name
+    return InterferenceTables.from_dict(read_saved(path)["result"])
+
+
+def run_search(s: Settings) -> Outcome:
+    """The search's calibration, its map and its decision, by its committed rule: per arena the
+    physics learner trials and first tasks that the learner tables come from; per cell the twin
+    among learners' fast - slow (batched) and R per class (logged twin trials); the candidate
+    cells, and the pre-registered plan of the best one (prediction.json), if any."""
+    out = s.out_dir()
+    logs = search_log_jobs(s)
+    physics, provenance = s.run_jobs(logs, LOGS, "logs", wall_of=lambda r: float(r["wall_s"]))
+    arenas = arena_runs.SEARCH_LEARNER_ARENAS
+    starts_jobs = [
+        StartRun(a, k, START_HOURS, arena_runs.digest(a))
+        for a in arenas
+        for k in range(s.start_runs)
+    ]
+    started, _ = s.run_jobs(starts_jobs, STARTS, "starts/runs", provenance_in="starts")
+    learned: dict[str, InterferenceTables] = {}
+    calibration: dict[str, list[Mapping[str, Any]]] = {}
+    for a, table_arena in zip(arenas, arena_runs.SEARCH_ARENAS):
+        calibration[a] = [physics[log_key(j)] for j in logs if j.arena == a]
+        tasks = [t for r in calibration[a] for t in trial_tasks(a, r)]
+        starts = [
+            ObservedTask(**{**t, "counts": tuple(t["counts"])})
+            for job in starts_jobs
+            if job.arena == a
+            for t in started[STARTS.key(job)]["tasks"]
+        ]
+        # (a smoke run's few trials cannot fill a cell of 20 tasks: it asks for 2)
+        least = 2 if s.quick else 20
+        fixed = family_tables(s, table_arena)
+        learned[a] = learner_tables(fixed, tasks, starts, min_tasks=least, min_first=min(least, 5))
+        (out / "learner_tables").mkdir(parents=True, exist_ok=True)
+        write_record(out / "learner_tables" / f"{a}.json", learned[a].to_dict())
+    cells = [(a, c) for a in arenas for c in SEARCH_CONDITIONS]
+    twin_jobs = [
+        LogTrial(
+            a,
+            c,
+            k,
+            s.convergence_h,
+            s.measured_h,
+            arena_runs.digest(a),
+            "twin_learners",
+            arena_runs.tables_digest(learned[a].to_dict()),
+            tables=learned[a].to_dict(),
+        )
+        for k in range(s.twin_log_trials)
+        for a, c in cells
+    ]
+    twin_logs, _ = s.run_jobs(twin_jobs, LOGS, "twin_logs/trials", provenance_in="twin_logs")
+    rows: list[Row] = []
+    for k, (a, c) in enumerate(cells):
+        lane = arena_runs.SEARCH_LANES[arenas.index(a)]
+        high = int(np.argmax([x.value for x in arena_runs.arena_config(a).circuits]))
+        diff = batch_effect(
+            a,
+            learned[a],
+            c,
+            min(s.twin_trials, SEARCH_TWIN_TRIALS),
+            np.random.default_rng([s.seed, 5, k]),
+            s,
+        )
+        m, lo, hi, _ = mean_ci(diff.tolist())
+        twin_r = [
+            time_ratios(trial_tasks(a, twin_logs[log_key(j)]), high)
+            for j in twin_jobs
+            if (j.arena, j.condition) == (a, c)
+        ]
+        row: Row = {
+            "arena": a,
+            "lane": lane,
+            "condition": c,
+            "learners": m,
+            "learners_low": lo,
+            "learners_high": hi,
+            "learners_sd": float(np.std(diff, ddof=1)),
+            "twin_trials": len(diff),
+            **{
+                f"twin_R_{cls}": float(np.nanmean([r[cls] for r in twin_r]))
+                for cls in ("fast", "slow")
+            },
+        }
+        if c == SEARCH_LOG_CONDITION:  # the calibration trials: reported, deciding nothing
+            measures = trial_measures(a, calibration[a], learned[a], s.convergence_h)
+            pm, plo, phi, pn = mean_ci(measures["fast - slow"])
+            row |= {
+                "calibration_physics": pm,
+                "calibration_low": plo,
+                "calibration_high": phi,
+                "calibration_trials": pn,
+                **{
+                    f"physics_R_{cls}": float(np.nanmean(measures[f"R {cls} (high / low)"]))
+                    for cls in ("fast", "slow")
+                },
+            }
+        row["candidate"] = bool(lo > 0.0)
+        rows.append(row)
+    plan = search_plan(s, rows)
+    body = search_body(s, rows, plan)
+    report = Report(
+        "search",
+        "The search for the paper's condition: the twin's map and its decision",
+        body,
+        rows,
+        summary={"cells": rows, "settings": s.recorded()},
+    )
+    written = report.write(out, provenance)
+    # the pre-registered plan, in the form `--stage test --prediction` runs
+    Report(
+        "prediction",
+        "The search's pre-registered cell",
+        "The search's pre-registered cell (see search.md): "
+        + (
+            "none, no cell is a candidate"
+            if not plan
+            else f"{plan[0]['arena']}, {plan[0]['condition']}"
+        ),
+        plan,
+        summary={"cells": plan, "settings": s.recorded()},
+    ).write(out, provenance)
+    return Outcome(out, written, body)
+
+
+def search_plan(s: Settings, rows: Sequence[Row]) -> list[Row]:
+    """The rule's decision: the candidate with the largest prediction, with the physics trials
+    that 80 % power at it needs (capped), on fresh seeds; none if no cell is a candidate."""
+    candidates = [r for r in rows if r["candidate"]]
+    if not candidates:
+        return []
+    best = max(candidates, key=lambda r: r["learners"])
+    needed = arena_runs.trials_for_power(best["learners_sd"], best["learners"])
+    trials = min(max(math.ceil(needed), s.min_physics), min(s.max_physics, SEARCH_MAX_PHYSICS))
+    return [
+        {
+            **best,
+            "fixed": math.nan,
+            "trials_for_80_power": needed,
+            "physics_trials": trials,
+            "first_seed": SEARCH_FIRST_SEED,
+        }
+    ]
+
+
+def search_body(s: Settings, rows: Sequence[Row], plan: Sequence[Row]) -> str:
+    table = markdown_table(
+        [
+            "arena",
+            "low lane / high lane",
+            "softmax T",
+            "twin among learners: fast - slow (95 % CI)",
+            "twin's R fast / R slow",
+            "calibration physics: fast - slow (N)",
+            "physics R fast / R slow",
+            "candidate",
+        ],
+        [
+            [
+                r["arena"],
+                f"{r['lane']:g}",
+                LEARNERS[r["condition"]].temperature,
+                fmt_ci(r["learners"], r["learners_low"], r["learners_high"], 3),
+                f"{r['twin_R_fast']:.3f} / {r['twin_R_slow']:.3f}",
+                (
+                    f"{fmt_ci(r['calibration_physics'], r['calibration_low'], r['calibration_high'], 3)}"
+                    f" ({r['calibration_trials']})"
+                    if "calibration_physics" in r
+                    else "-"
+                ),
+                f"{r['physics_R_fast']:.3f} / {r['physics_R_slow']:.3f}"
+                if "physics_R_fast" in r
+                else "-",
+                "**yes**" if r["candidate"] else "no",
+            ]
+            for r in rows
+        ],
+    )
+    if plan:
+        p = plan[0]
+        decision = (
+            f"**A candidate: {p['arena']} at {p['condition']}.** The twin predicts fast - slow = "
+            f"{fmt_ci(p['learners'], p['learners_low'], p['learners_high'], 3)}; 80 % power at it "
+            f"needs {p['trials_for_80_power']:.0f} physics trials, so {p['physics_trials']} run "
+            f"(seeds {p['first_seed']} and up) by `--stage test --prediction "
+            "benchmarks/results/twin_search/prediction.json`, after this commit."
+        )
+    else:
+        decision = (
+            "**No cell is a candidate**: nowhere in this family does the twin among learners put "
+            "fast - slow's 95 % interval above 0, so by the rule no physics cell is "
+            "pre-registered, and the answer in this family is no."
+        )
+    return (
+        "The search's map (its rule, committed before any of its arenas was measured: "
+        "docs/results/differentiation.md; the arenas' fixed-allocation measurements: family.md). "
+        f"Per arena, {s.log_trials or SEARCH_LOG_TRIALS} physics learner trials at "
+        f"{SEARCH_LOG_CONDITION} (seeds 0 up; their fast - slow is reported and decides nothing) "
+        f"and {s.start_runs} runs from the start give the learner tables; the twin among learners "
+        f"then predicts fast - slow in each cell from {min(s.twin_trials, SEARCH_TWIN_TRIALS)} "
+        f"batched trials, and R = t(high) / t(low) per class among {s.twin_log_trials} logged "
+        "twin trials (own-circuit tasks after the first). A cell is a candidate if the "
+        "predicted interval lies above 0.\n\n" + table + "\n\n" + decision
+    )
+
+
 # -- settings ---------------------------------------------------------------------------------------
 @dataclass(frozen=True, kw_only=True)
 class Settings(StudySettings):
@@ -1151,7 +1382,7 @@ class Settings(StudySettings):
     stage: Stage = "logs"
     """logs (physics task logs), audit (learner tables and the audit), predict (pre-registered
     out-of-sample predictions), test (their physics) or family (the search's arenas, measured in
-    physics without learners)"""
+    physics without learners) or search (its learner tables, the twin's map and the decision)"""
     log_trials: int = 0
     """logged physics trials per cell (0: `LOG_CELLS`' numbers)"""
     twin_log_trials: int = 20
@@ -1201,10 +1432,13 @@ class Settings(StudySettings):
         )
 
     def reference_name(self) -> str:
+        if self.stage == "test" and Path(self.prediction).parent.name == "twin_search":
+            return "twin_search_test"  # the search's pre-registered cell
         return {
             "predict": "twin_learners_prediction",
             "test": "twin_learners_test",
             "family": "twin_search",
+            "search": "twin_search",
         }.get(self.stage, "twin_learners")
 
     def recorded(self) -> dict[str, Any]:
@@ -1214,6 +1448,7 @@ class Settings(StudySettings):
             "predict": "twin_trials min_physics max_physics",
             "test": "prediction=prediction_name",
             "family": "",
+            "search": "log_trials twin_log_trials twin_trials start_runs min_physics max_physics",
         }[self.stage]
         return self.recorded_of(f"stage {sizes} convergence_h measured_h seed")
 
@@ -1238,7 +1473,7 @@ class Settings(StudySettings):
         return here if here.is_dir() else RESULTS_DIR / "twin_learners" / "logs"
 
 
-STAGES: tuple[Stage, ...] = ("logs", "audit", "predict", "test", "family")
+STAGES: tuple[Stage, ...] = ("logs", "audit", "predict", "test", "family", "search")
 
 
 # -- stage 1: the logs ------------------------------------------------------------------------------
@@ -1270,6 +1505,8 @@ def run(settings: Settings) -> Outcome:
         return run_predict(s)
     if s.stage == "family":
         return run_family(s)
+    if s.stage == "search":
+        return run_search(s)
     return run_test(s)
 
 

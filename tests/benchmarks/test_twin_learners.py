@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import arena_runs
 import twin_learners as study
 from tavc_agents.experiments.files import read_record
 from tavc_env.twin import InterferenceTables
@@ -82,3 +83,24 @@ def test_the_shape_check_compares_what_a_learner_is_paid() -> None:
     again = {(r["arena"], r["class"]): r for r in study.reward_shape(settings)}
     for row in shape:
         assert again[(row["arena"], row["class"])]["physics_ratio"] == row["physics_ratio"]
+
+
+def test_the_search_maps_its_eight_cells_and_decides_by_its_rule(tmp_path: Path) -> None:
+    """`--stage search` on a short run, from the committed family tables: the rule's 8 cells, a
+    cell a candidate exactly when its predicted interval lies above 0, and a plan (none, or the
+    best candidate on fresh seeds) that the test stage can run."""
+    out = tmp_path / "search"
+    assert study.main(["--stage", "search", "--quick", "--workers", "1", "--out", str(out)]) == 0
+    cells = json.loads((out / "search.json").read_text())["summary"]["cells"]
+    assert len(cells) == 8
+    assert {(c["arena"], c["condition"]) for c in cells} == {
+        (a, c) for a in arena_runs.SEARCH_LEARNER_ARENAS for c in study.SEARCH_CONDITIONS
+    }
+    for c in cells:
+        assert c["candidate"] == (c["learners_low"] > 0.0)
+    plan = json.loads((out / "prediction.json").read_text())["summary"]["cells"]
+    candidates = [c for c in cells if c["candidate"]]
+    assert len(plan) == (1 if candidates else 0)
+    if plan:
+        assert plan[0]["learners"] == max(c["learners"] for c in candidates)
+        assert plan[0]["first_seed"] == study.SEARCH_FIRST_SEED
