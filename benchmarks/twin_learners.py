@@ -1167,7 +1167,9 @@ def run_search(s: Settings) -> Outcome:
     cells, and the pre-registered plan of the best one (prediction.json), if any."""
     out = s.out_dir()
     logs = search_log_jobs(s)
-    physics, provenance = s.run_jobs(logs, LOGS, "logs", wall_of=lambda r: float(r["wall_s"]))
+    physics, provenance = s.run_jobs(
+        logs, LOGS, "logs/trials", provenance_in="logs", wall_of=lambda r: float(r["wall_s"])
+    )  # (the folder's own provenance.json is the family stage's)
     arenas = arena_runs.SEARCH_LEARNER_ARENAS
     starts_jobs = [
         StartRun(a, k, START_HOURS, arena_runs.digest(a))
