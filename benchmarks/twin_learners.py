@@ -1292,7 +1292,8 @@ def search_plan(s: Settings, rows: Sequence[Row]) -> list[Row]:
         return []
     best = max(candidates, key=lambda r: r["learners"])
     needed = arena_runs.trials_for_power(best["learners_sd"], best["learners"])
-    trials = min(max(math.ceil(needed), s.min_physics), min(s.max_physics, SEARCH_MAX_PHYSICS))
+    cap = s.max_physics if s.quick else SEARCH_MAX_PHYSICS  # the rule's cap (a smoke run's own)
+    trials = min(max(math.ceil(needed), s.min_physics), cap)
     return [
         {
             **best,
