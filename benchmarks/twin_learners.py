@@ -44,7 +44,7 @@ import numpy as np
 import arena_runs
 import tavc_env
 from tavc_agents.analysis.measures import measure
-from tavc_agents.analysis.reports import Report, fmt_ci, markdown_table, write_csv
+from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.files import read_csv, read_record, read_report, write_record
 from tavc_agents.experiments.packs import is_saved, load_trials, read_saved
@@ -936,7 +936,7 @@ def run_test(s: Settings) -> Outcome:
                 fmt_ci(r["physics"], r["physics_low"], r["physics_high"], 3),
                 fmt_ci(r["predicted"], r["predicted_low"], r["predicted_high"], 3),
                 "yes" if r["prediction_inside"] else "**no**",
-                f"{r['fixed']:.3f}",
+                fmt(r["fixed"], 3),
             ]
             for r in rows
         ],
