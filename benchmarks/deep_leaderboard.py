@@ -746,6 +746,8 @@ def best_allocators(path: Path) -> dict[str, tuple[str, float]]:
     summary = read_report(path)["summary"]
     best: dict[str, tuple[str, float]] = {}
     for allocator, cells_of in summary.items():
+        if allocator == "deep":  # the deep learners shown beside the allocators (`--deep`)
+            continue
         for name, cell in cells_of.items():
             if name != "suite" and (name not in best or cell["iqm"] > best[name][1]):
                 best[name] = (allocator, float(cell["iqm"]))
@@ -1242,8 +1244,16 @@ def run(settings: Settings) -> Outcome:
         readout_provenance = _stored_provenance(out / READOUT_JOBS_DIR, fallback=False)
     evaluations = saved_results(planned, EVALUATIONS, out / READOUT_JOBS_DIR)
     rep = report(s, every, results, provenance, evaluations, readout_provenance)
-    written = rep.write(out, provenance)
+    # the header names the command that wrote this report: the runs' own when it trained some,
+    # else this one's (it covers every scenario shown; provenance.json keeps the last training)
+    written = rep.write(out, provenance if todo else _this_run(s))
     return Outcome(out, written, rep.body)
+
+
+def _this_run(s: Settings) -> dict[str, Any]:
+    from tavc_agents.experiments.provenance import run_metadata
+
+    return run_metadata(settings=s.recorded())
 
 
 def _stored_provenance(out: Path, fallback: bool = True) -> dict[str, Any]:
