@@ -914,7 +914,7 @@ def run_test(s: Settings) -> Outcome:
                 "predicted": c["learners"],
                 "predicted_low": c["learners_low"],
                 "predicted_high": c["learners_high"],
-                "fixed": c["fixed"],
+                "fixed": math.nan if c.get("fixed") is None else float(c["fixed"]),
                 "prediction_inside": inside,
             }
         )
