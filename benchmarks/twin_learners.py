@@ -44,6 +44,7 @@ import numpy as np
 import arena_runs
 import tavc_env
 from tavc_agents.analysis.measures import measure
+from tavc_agents.analysis.plots import subplots
 from tavc_agents.analysis.reports import Report, fmt, fmt_ci, markdown_table, write_csv
 from tavc_agents.analysis.stats import mean_ci
 from tavc_agents.experiments.files import read_csv, read_record, read_report, write_record
@@ -1277,6 +1278,7 @@ def run_search(s: Settings) -> Outcome:
         rows,
         summary={"cells": rows, "settings": s.recorded()},
     )
+    report.figures.append((SEARCH_FIGURE, lambda path: draw_search(path, rows)))
     written = report.write(out, provenance)
     # the pre-registered plan, in the form `--stage test --prediction` runs
     Report(
@@ -1292,6 +1294,33 @@ def run_search(s: Settings) -> Outcome:
         summary={"cells": plan, "settings": s.recorded()},
     ).write(out, provenance)
     return Outcome(out, written, body)
+
+
+SEARCH_FIGURE = "search.png"
+
+
+def draw_search(path: Path, rows: Sequence[Row]) -> None:
+    """The twin's map: predicted fast - slow against the low lane's length, per temperature, with
+    the calibration trials' physics (T = 0.005) beside; 95 % intervals."""
+    fig, ax = subplots(figsize=(6.0, 3.6))
+    for k, c in enumerate(SEARCH_CONDITIONS):
+        mine = [r for r in rows if r["condition"] == c]
+        x = np.array([r["lane"] for r in mine]) + 0.006 * (k - 0.5)
+        m = np.array([r["learners"] for r in mine])
+        err = [m - [r["learners_low"] for r in mine], [r["learners_high"] for r in mine] - m]
+        ax.errorbar(x, m, yerr=err, fmt="o-", ms=4, label=f"twin, T = {LEARNERS[c].temperature:g}")
+    cal = [r for r in rows if "calibration_physics" in r]
+    x = np.array([r["lane"] for r in cal]) + 0.012
+    m = np.array([r["calibration_physics"] for r in cal])
+    err = [m - [r["calibration_low"] for r in cal], [r["calibration_high"] for r in cal] - m]
+    ax.errorbar(x, m, yerr=err, fmt="s", ms=4, color="grey", label="physics, calibration (30)")
+    ax.axhline(0.0, color="black", lw=0.6)
+    ax.set_xlabel("low-value lane / high-value lane")
+    ax.set_ylabel("fast - slow")
+    ax.invert_xaxis()
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, format="png")
 
 
 def search_plan(s: Settings, rows: Sequence[Row]) -> list[Row]:
