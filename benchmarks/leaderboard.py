@@ -56,6 +56,7 @@ from tavc_agents.evaluation import (
     value_per_hour,
 )
 from tavc_agents.experiments.files import read_csv, read_report
+from tavc_agents.experiments.provenance import run_metadata
 from tavc_agents.experiments.registry import allocator_names
 from tavc_agents.experiments.runner import TrialResult
 from tavc_agents.experiments.study import (
@@ -471,7 +472,10 @@ def run(settings: Settings) -> Outcome:
     deep = deep_rows(s)  # (read first: a refused folder stops the run before any episode)
     results, provenance = s.run_trials(jobs)
     rep = report(s, rows_of(jobs, results, refs) + submitted_rows(s, refs), deep)
-    written = rep.write(out, provenance)
+    # the header names this command when every episode was resumed from a run of other settings
+    # (other rows or deep reports): the table is this command's, the episodes are as they were
+    same = provenance.get("settings") == s.recorded()
+    written = rep.write(out, provenance if same else run_metadata(settings=s.recorded()))
     return Outcome(out, written, rep.body)
 
 
