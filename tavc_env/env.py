@@ -862,7 +862,9 @@ class _History:
 _HISTORIES: weakref.WeakKeyDictionary[Engine, _History] = weakref.WeakKeyDictionary()
 # Attributes of a Simulation that are not its state: code, caches of other attributes, links.
 # (the generator is fed through its state; `_bitgen` is only where in memory that state lives)
-_NOT_STATE = frozenset({"config", "world", "_rng", "_bitgen", "_observers", "_tick_args", "_bound"})
+_NOT_STATE = frozenset(
+    {"config", "world", "_rng", "_bitgen", "_observers", "_tick_args", "_tick_loop", "_bound"}
+)
 
 
 def _arena_digest(sim: Simulation) -> str:

@@ -1380,6 +1380,26 @@ def _run_ticks(
 
 run_ticks = compiled(_run_ticks)
 
+_TICK_SCALARS = (types.int64, types.int64, *([types.float64] * 6), types.boolean)
+"""the types of `run_ticks`' leading arguments, max_ticks to jammed (fixed, so that a value that
+happens to be an int where a time is expected cannot select an integer signature)"""
+
+
+def tick_loop(loop: Callable[..., Any], bound: tuple[object, ...]) -> Callable[..., Any]:
+    """`loop` (`run_ticks`) as called with `bound` (`TickArgs`, then the task rules' arrays) after
+    its leading scalars: a function of those scalars alone. For numba's dispatcher it calls the
+    compiled entry of these arguments' types directly (compiled, or loaded from the disk cache,
+    here if need be): numba's type dispatch over 81 arguments cost 1.5 us of the 2.5 a call took.
+    Anything else (a timing wrapper, say) is called as it is. Bind again when `bound` changes."""
+    head, fields = bound[: len(TickArgs._fields)], bound[len(TickArgs._fields) :]
+    compile_for = getattr(loop, "compile", None)
+    typeof = getattr(loop, "typeof_pyval", None)
+    if compile_for is None or typeof is None:
+        return lambda *scalars: loop(*scalars, *bound)
+    # (numba passes star arguments to the compiled code as one tuple, and types them so)
+    entry = compile_for((*_TICK_SCALARS, *(typeof(a) for a in head), typeof(fields)))
+    return lambda *scalars: entry(*scalars, *head, fields)
+
 
 def _replay_commands(
     c_calls: np.ndarray, commands: np.ndarray, velocities_in: np.ndarray, dt: float

@@ -8,8 +8,9 @@ and time; it knows nothing of observations, rewards or agents' names.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -38,6 +39,7 @@ from tavc_env.engine.navigation import (
     new_leg_speed,
     run_ticks,
     stuck_of,
+    tick_loop,
 )
 from tavc_env.engine.tasks import Phase, TaskCycle
 from tavc_env.engine.world import World
@@ -126,6 +128,7 @@ class Simulation:
         self._pos = np.zeros((n, 2))  # positions after the last physics step
         self._dt = config.dt
         self._tick_args: tuple[object, ...] = ()  # `TickArgs`, then the task rules' arrays
+        self._tick_loop: Callable[..., Any] = run_ticks  # bound to them (`tick_loop`)
         self._bound: tuple[object, ...] = (None,) * 7
         # large teams find their neighbours on a grid (same commands, O(n) instead of O(n^2))
         self._grid_cell = (
@@ -313,6 +316,7 @@ class Simulation:
             **dict(zip(_GRID_FIELDS, grid_scratch(self.config.n_robots))),
         )
         self._tick_args = (*tick_args, *tasks.arrays)
+        self._tick_loop = tick_loop(run_ticks, self._tick_args)
         # the world itself too: a new World starts counting versions anew, and the compiled
         # tick must never call into the C space of one that is gone
         self._bound = (
@@ -341,17 +345,18 @@ class Simulation:
             or bound[6] is not self._progress_pos
         ):
             self._bind()
-        ran, stage, n_done, n_stalled, event, progressed, next_service, progress_s = run_ticks(
-            max_ticks,
-            self.ticks,
-            self._dt,
-            self._escapes_end,
-            self._next_service,
-            float(self._schedule[0].at_s) if self._schedule else math.inf,
-            self._progress_s,
-            self.jam_window_s,
-            self.jammed,
-            *self._tick_args,
+        ran, stage, n_done, n_stalled, event, progressed, next_service, progress_s = (
+            self._tick_loop(
+                max_ticks,
+                self.ticks,
+                self._dt,
+                self._escapes_end,
+                self._next_service,
+                float(self._schedule[0].at_s) if self._schedule else math.inf,
+                self._progress_s,
+                self.jam_window_s,
+                self.jammed,
+            )
         )
         self.ticks += ran
         self.time_s = self.ticks * self._dt
