@@ -1293,6 +1293,17 @@ def run_search(s: Settings) -> Outcome:
         plan,
         summary={"cells": plan, "settings": s.recorded()},
     ).write(out, provenance)
+    # beyond the rule: every candidate, the pre-registered one first, for a replication
+    replication = [plan_of(s, r) for r in candidates_of(rows)]  # (the first is `plan`'s)
+    Report(
+        "replication",
+        "The search's candidates, the pre-registered one first: a replication's plan",
+        "Every candidate cell of the map (search.md), the pre-registered one first; each with "
+        "the physics trials 80 % power at its own prediction needs, on fresh seeds. Not the "
+        "rule's decision (prediction.json): a replication beyond it.",
+        replication,
+        summary={"cells": replication, "settings": s.recorded()},
+    ).write(out, provenance)
     return Outcome(out, written, body)
 
 
@@ -1323,25 +1334,30 @@ def draw_search(path: Path, rows: Sequence[Row]) -> None:
     fig.savefig(path, dpi=120, format="png")
 
 
+def candidates_of(rows: Sequence[Row]) -> list[Row]:
+    """The map's candidate cells, largest prediction first."""
+    return sorted((r for r in rows if r["candidate"]), key=lambda r: -r["learners"])
+
+
 def search_plan(s: Settings, rows: Sequence[Row]) -> list[Row]:
-    """The rule's decision: the candidate with the largest prediction, with the physics trials
-    that 80 % power at it needs (capped), on fresh seeds; none if no cell is a candidate."""
-    candidates = [r for r in rows if r["candidate"]]
-    if not candidates:
-        return []
-    best = max(candidates, key=lambda r: r["learners"])
-    needed = arena_runs.trials_for_power(best["learners_sd"], best["learners"])
+    """The rule's decision: the candidate with the largest prediction (`plan_of`); none if no
+    cell is a candidate."""
+    return [plan_of(s, r) for r in candidates_of(rows)[:1]]
+
+
+def plan_of(s: Settings, cell: Row) -> Row:
+    """A candidate cell's physics plan: the trials that 80 % power at its prediction needs
+    (capped), on fresh seeds."""
+    needed = arena_runs.trials_for_power(cell["learners_sd"], cell["learners"])
     cap = s.max_physics if s.quick else SEARCH_MAX_PHYSICS  # the rule's cap (a smoke run's own)
     trials = min(max(math.ceil(needed), s.min_physics), cap)
-    return [
-        {
-            **best,
-            "fixed": math.nan,
-            "trials_for_80_power": needed,
-            "physics_trials": trials,
-            "first_seed": SEARCH_FIRST_SEED,
-        }
-    ]
+    return {
+        **cell,
+        "fixed": math.nan,
+        "trials_for_80_power": needed,
+        "physics_trials": trials,
+        "first_seed": SEARCH_FIRST_SEED,
+    }
 
 
 def search_body(s: Settings, rows: Sequence[Row], plan: Sequence[Row]) -> str:
