@@ -338,6 +338,27 @@ STARTS = json_jobs(run_start, lambda job: f"{job.arena}__start{job.seed}", unit=
 START_HOURS = 0.25
 """long enough for every robot's first task in these arenas (the slowest take about 300 s)"""
 
+
+def start_tasks(s: Settings, arenas: Sequence[str]) -> dict[str, list[ObservedTask]]:
+    """Per arena, every robot's first task over `s.start_runs` physics runs from the start
+    allocation (run, or resumed, in the output folder's starts/)."""
+    jobs = [
+        StartRun(a, k, START_HOURS, arena_runs.digest(a))
+        for a in arenas
+        for k in range(s.start_runs)
+    ]
+    started, _ = s.run_jobs(jobs, STARTS, "starts/runs", provenance_in="starts")
+    return {
+        a: [
+            ObservedTask(**{**t, "counts": tuple(t["counts"])})
+            for job in jobs
+            if job.arena == a
+            for t in started[STARTS.key(job)]["tasks"]
+        ]
+        for a in arenas
+    }
+
+
 VARIANTS: Mapping[str, str] = {
     "fixed": "fixed-allocation tables (the committed twin)",
     "first": "fixed + first tasks from the start (A)",
@@ -447,12 +468,7 @@ def run_audit(s: Settings) -> Outcome:
     out = s.out_dir()
     physics = physics_logs(s)
     arenas = list(dict.fromkeys(a for a, _ in LOG_CELLS))
-    starts_jobs = [
-        StartRun(a, k, START_HOURS, arena_runs.digest(a))
-        for a in arenas
-        for k in range(s.start_runs)
-    ]
-    started, _ = s.run_jobs(starts_jobs, STARTS, "starts/runs", provenance_in="starts")
+    starts_of = start_tasks(s, arenas)
     tables: dict[str, dict[str, InterferenceTables]] = {}
     for a in arenas:
         fixed = InterferenceTables.from_dict(fixed_tables(a))
@@ -463,12 +479,7 @@ def run_audit(s: Settings) -> Outcome:
             for r in rs
             for t in trial_tasks(a, r)
         ]
-        starts = [
-            ObservedTask(**{**t, "counts": tuple(t["counts"])})
-            for job in starts_jobs
-            if job.arena == a
-            for t in started[STARTS.key(job)]["tasks"]
-        ]
+        starts = starts_of[a]
         learned = learner_tables(fixed, tasks, starts)
         tables[a] = {v: variant_tables(v, fixed, learned) for v in VARIANTS}
         (out / "tables").mkdir(parents=True, exist_ok=True)
@@ -732,6 +743,13 @@ paper's literal initialisation, equal fixed Q levels, and other arenas; no physi
 them had run when their predictions were committed."""
 
 
+def planned_trials(needed: float, least: int, most: int) -> int:
+    """A cell's physics trials: what 80 % power asks (`needed`; infinite: `most`), within
+    [`least`, `most`]."""
+    wanted = most if not math.isfinite(needed) else math.ceil(needed)
+    return min(max(wanted, least), most)
+
+
 def learned_tables(arena: str, s: Settings) -> InterferenceTables:
     """The arena's tables among learners as the audit wrote them (its output folder's, else the
     committed ones)."""
@@ -767,8 +785,7 @@ def run_predict(s: Settings) -> Outcome:
         row["twin_trials"] = s.twin_trials
         needed = arena_runs.trials_for_power(row["learners_sd"], row["learners"])
         row["trials_for_80_power"] = needed
-        wanted = s.max_physics if not math.isfinite(needed) else math.ceil(needed)
-        row["physics_trials"] = min(max(wanted, s.min_physics), s.max_physics)
+        row["physics_trials"] = planned_trials(needed, s.min_physics, s.max_physics)
         rows.append(row)
     write_csv(out / "prediction_trials.csv", per_trial)
     body = prediction_body(s, rows)
@@ -1182,23 +1199,13 @@ def run_search(s: Settings) -> Outcome:
         logs, LOGS, "logs/trials", provenance_in="logs", wall_of=lambda r: float(r["wall_s"])
     )  # (the folder's own provenance.json is the family stage's)
     arenas = arena_runs.SEARCH_LEARNER_ARENAS
-    starts_jobs = [
-        StartRun(a, k, START_HOURS, arena_runs.digest(a))
-        for a in arenas
-        for k in range(s.start_runs)
-    ]
-    started, _ = s.run_jobs(starts_jobs, STARTS, "starts/runs", provenance_in="starts")
+    starts_of = start_tasks(s, arenas)
     learned: dict[str, InterferenceTables] = {}
     calibration: dict[str, list[Mapping[str, Any]]] = {}
     for a, table_arena in zip(arenas, arena_runs.SEARCH_ARENAS):
         calibration[a] = [physics[log_key(j)] for j in logs if j.arena == a]
         tasks = [t for r in calibration[a] for t in trial_tasks(a, r)]
-        starts = [
-            ObservedTask(**{**t, "counts": tuple(t["counts"])})
-            for job in starts_jobs
-            if job.arena == a
-            for t in started[STARTS.key(job)]["tasks"]
-        ]
+        starts = starts_of[a]
         # (a smoke run's few trials cannot fill a cell of 20 tasks: it asks for 2)
         least = 2 if s.quick else 20
         fixed = family_tables(s, table_arena)
@@ -1350,12 +1357,11 @@ def plan_of(s: Settings, cell: Row) -> Row:
     (capped), on fresh seeds."""
     needed = arena_runs.trials_for_power(cell["learners_sd"], cell["learners"])
     cap = s.max_physics if s.quick else SEARCH_MAX_PHYSICS  # the rule's cap (a smoke run's own)
-    trials = min(max(math.ceil(needed), s.min_physics), cap)
     return {
         **cell,
         "fixed": math.nan,
         "trials_for_80_power": needed,
-        "physics_trials": trials,
+        "physics_trials": planned_trials(needed, s.min_physics, cap),
         "first_seed": SEARCH_FIRST_SEED,
     }
 
