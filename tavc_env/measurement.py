@@ -377,8 +377,8 @@ def compiled_loop_timer() -> Iterator[list[float]]:
 
     spent = [0.0]
 
-    def timed_loop(loop: Any, bound: tuple[object, ...]) -> Any:
-        call = tick_loop(loop, bound)
+    def timed_loop(bound: tuple[object, ...]) -> Any:
+        call = tick_loop(bound)
 
         def timed(*scalars: Any) -> Any:
             start = time.process_time()

@@ -1385,19 +1385,17 @@ _TICK_SCALARS = (types.int64, types.int64, *([types.float64] * 6), types.boolean
 happens to be an int where a time is expected cannot select an integer signature)"""
 
 
-def tick_loop(loop: Callable[..., Any], bound: tuple[object, ...]) -> Callable[..., Any]:
-    """`loop` (`run_ticks`) as called with `bound` (`TickArgs`, then the task rules' arrays) after
-    its leading scalars: a function of those scalars alone. For numba's dispatcher it calls the
-    compiled entry of these arguments' types directly (compiled, or loaded from the disk cache,
-    here if need be): numba's type dispatch over 81 arguments cost 1.5 us of the 2.5 a call took.
-    Anything else (a timing wrapper, say) is called as it is. Bind again when `bound` changes."""
+def tick_loop(bound: tuple[object, ...]) -> Callable[..., Any]:
+    """`run_ticks` as called with `bound` (`TickArgs`, then the task rules' arrays) after its
+    leading scalars: a function of those scalars alone, calling the compiled entry of these
+    arguments' types directly (compiled, or loaded from the disk cache, here if need be): numba's
+    type dispatch over 81 arguments cost 1.5 us of the 2.5 a call took. Bind again when `bound`
+    changes."""
     head, fields = bound[: len(TickArgs._fields)], bound[len(TickArgs._fields) :]
-    compile_for = getattr(loop, "compile", None)
-    typeof = getattr(loop, "typeof_pyval", None)
-    if compile_for is None or typeof is None:
-        return lambda *scalars: loop(*scalars, *bound)
+    dispatcher: Any = run_ticks  # (numba's Dispatcher: `compiled` returns it as a callable)
+    typeof = dispatcher.typeof_pyval
     # (numba passes star arguments to the compiled code as one tuple, and types them so)
-    entry = compile_for((*_TICK_SCALARS, *(typeof(a) for a in head), typeof(fields)))
+    entry = dispatcher.compile((*_TICK_SCALARS, *(typeof(a) for a in head), typeof(fields)))
     return lambda *scalars: entry(*scalars, *head, fields)
 
 

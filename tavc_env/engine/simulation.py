@@ -316,7 +316,7 @@ class Simulation:
             **dict(zip(_GRID_FIELDS, grid_scratch(self.config.n_robots))),
         )
         self._tick_args = (*tick_args, *tasks.arrays)
-        self._tick_loop = tick_loop(run_ticks, self._tick_args)
+        self._tick_loop = tick_loop(self._tick_args)
         # the world itself too: a new World starts counting versions anew, and the compiled
         # tick must never call into the C space of one that is gone
         self._bound = (
