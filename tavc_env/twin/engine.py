@@ -140,17 +140,35 @@ class TaskTimeProcess:
         rng = self.rng
         tasks = self.tasks
         for i, switch in self._undrawn:
-            k, cls = tasks.circuit[i], self.robot_class[i]
-            first = self._first[i]
-            law = self._first_law if first else self._law
-            mean, mu, sigma = law[(switch and first, k, tuple(self._committed[k]), cls)]
-            t = math.exp(mu + sigma * rng.standard_normal()) if sigma > 0 else mean
-            if switch and not first:
-                t *= self._switch_cost[cls]
+            k = tasks.circuit[i]
+            t = self.task_time(
+                self.robot_class[i], k, tuple(self._committed[k]), switch, self._first[i], rng
+            )
             self._first[i] = False
             self._duration[i] = t
             heapq.heappush(self._due, (tasks.decision_time[i] + t, i, self._token[i]))
         self._undrawn = []
+
+    def task_time(
+        self,
+        robot_class: int,
+        circuit: int,
+        counts: tuple[int, ...],
+        switch: bool,
+        first: bool,
+        rng: np.random.Generator,
+    ) -> float:
+        """A task time drawn from the tables: a robot of class index `robot_class` working on
+        `circuit` with `counts` robots of each class there (itself included), that `switch`ed
+        circuits, on its `first` task (which has cells of its own when the tables do) or not (the
+        class's switch cost then multiplies a switching task)."""
+        first = first and bool(self._first_law)
+        law = self._first_law if first else self._law
+        mean, mu, sigma = law[(switch and first, circuit, counts, robot_class)]
+        t = math.exp(mu + sigma * rng.standard_normal()) if sigma > 0 else mean
+        if switch and not first:
+            t *= self._switch_cost[robot_class]
+        return t
 
     def break_down(self, robot: int) -> None:
         """`robot` stops: its task (if any) is abandoned and it no longer counts on its circuit."""
