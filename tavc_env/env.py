@@ -138,14 +138,16 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         self._history: _History | None = None  # what was done to the arena since reset
         self._value_plan: list[tuple[float, tuple[float, ...]]] = []  # (at_s, values), in order
         self.num_cycles = 0
-        self._last_task_time = np.full(n, math.nan)  # of the task each robot completed this step
+        # of the task each robot completed this step (lists: read and written an item at a time)
+        self._last_task_time = [math.nan] * n
         self._last_task_by_circuit = np.full((n, m), math.nan)  # (rich observations)
         # deliveries since reset, each counting w_i / max w (the paper's measure, summed)
         self.delivered_value = 0.0
         # deliveries since reset, each counting its circuit's value w when it was delivered (the
         # suite's metric, summed: value per hour is this over the episode's simulated hours)
         self.episode_value = 0.0
-        self._last_task_value = np.zeros(n)  # w paid for the task each robot completed this step
+        self._last_task_value = [0.0] * n  # w paid for the task each robot completed this step
+        self._paid_values: tuple[np.ndarray | None, list[float], float] = (None, [], 1.0)
         self._renderer: Any = None
 
     # -- PettingZoo API ------------------------------------------------------------------------
@@ -179,11 +181,11 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         _HISTORIES[self.sim] = self._history
         self.agents = self.possible_agents[:]
         self.num_cycles = 0
-        self._last_task_time[:] = math.nan
+        self._last_task_time = [math.nan] * self.config.n_robots
         self._last_task_by_circuit[:] = math.nan
         self.delivered_value = 0.0
         self.episode_value = 0.0
-        self._last_task_value[:] = 0.0
+        self._last_task_value = [0.0] * self.config.n_robots
         return self._observations(), self._infos(truncated=False)
 
     def step(
@@ -202,16 +204,16 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         infos = self._infos(truncated, deciding)
         terminations = dict.fromkeys(self.agents, False)
         truncations = dict.fromkeys(self.agents, truncated)
-        reward_of = dict(zip(self.agents, rewards.tolist()))
+        reward_of = dict(zip(self.agents, rewards))
         if truncated:
             self.agents = []
         return observations, reward_of, terminations, truncations, infos
 
-    def advance_choices(self, choices: list[tuple[int, int]]) -> tuple[np.ndarray, bool]:
+    def advance_choices(self, choices: list[tuple[int, int]]) -> tuple[list[float], bool]:
         """The arena part of `step`, for adapters that build arrays themselves (`tavc_env.adapters.
         batched`): every `(robot, circuit)` choice of the deciding robots applied (in robot order,
         unchecked: the caller checked them), the arena advanced to the step's end, the values
-        plan applied. Returns every robot's reward `(n,)` and whether the episode is truncated;
+        plan applied. Returns every robot's reward (n floats) and whether the episode is truncated;
         the step's observations, masks and infos are then `arena_arrays`."""
         self._require_running()
         history = self._recorder()
@@ -468,23 +470,36 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         )
         return int(a)  # type: ignore[call-overload]
 
-    def _rewards(self, out: Advance) -> np.ndarray:
-        rewards = np.zeros(self.config.n_robots)
-        self._last_task_time[:] = math.nan
-        self._last_task_value[:] = 0.0
+    def _rewards(self, out: Advance) -> list[float]:
+        n = self.config.n_robots
+        rewards = [0.0] * n
+        self._last_task_time = times = [math.nan] * n
+        self._last_task_value = paid = [0.0] * n
+        if not out.completions:
+            return rewards
         unit = TIME_UNITS[self.options.reward_time_unit]
         per_value = self.options.reward == "value"
-        values = self.sim.tasks.values
-        top = values.max() if out.completions else 1.0  # (a reduction, once per step)
+        values, top = self._values_now()
         for c in out.completions:
             w = values[c.circuit]
-            rewards[c.robot] += float(w if per_value else w / (c.task_time_s * unit))
-            self.delivered_value += float(w / top)
-            self.episode_value += float(w)
-            self._last_task_value[c.robot] = float(w)
-            self._last_task_time[c.robot] = float(c.task_time_s)
+            rewards[c.robot] += w if per_value else float(w / (c.task_time_s * unit))
+            self.delivered_value += w / top
+            self.episode_value += w
+            paid[c.robot] = w
+            times[c.robot] = float(c.task_time_s)
             self._last_task_by_circuit[c.robot, c.circuit] = float(c.task_time_s)
         return rewards
+
+    def _values_now(self) -> tuple[list[float], float]:
+        """The circuits' values now as Python floats, and the largest: read again only when the
+        engine's values array is replaced (`set_circuit_values`, a reset)."""
+        array, values, top = self._paid_values
+        if array is not self.sim.tasks.values:
+            array = self.sim.tasks.values
+            values = [float(w) for w in array]
+            top = max(values)
+            self._paid_values = (array, values, top)
+        return values, top
 
     def _observations(self, deciding: np.ndarray | None = None) -> dict[str, Any]:
         """Every agent's observation; `deciding`: `needs_decision()` if the caller has it."""
@@ -524,8 +539,8 @@ class ArenaEnv(ParallelEnv[str, dict[str, np.ndarray], int], Generic[E]):
         circuits = _plain(tasks.circuit)
         decided = _plain(tasks.decision_time)
         completed = _plain(tasks.completed)
-        task_times = self._last_task_time.tolist()
-        task_values = self._last_task_value.tolist()
+        task_times = self._last_task_time
+        task_values = self._last_task_value
         infos: dict[str, dict[str, Any]] = {}
         for agent in self.agents:
             i = self._index[agent]

@@ -962,6 +962,41 @@ _new_leg_speed_c = compiled(_new_leg_speed, inline=True)
 new_leg_speed = _new_leg_speed_c
 
 
+def _choose_leg(
+    i: int,
+    circuit: int,
+    now: float,
+    speed_noise: float,
+    speeds: np.ndarray,
+    speed_factor: np.ndarray,
+    top_speed: np.ndarray,
+    bitgen: np.ndarray,
+    *task_fields: Any,
+) -> None:
+    """`Simulation.choose` in one call: `choose` on the task arrays given field by field, then
+    the leg to the source gets its speed (`_new_leg_speed`)."""
+    choose(TaskArrays(*task_fields), i, circuit, now)
+    _new_leg_speed_c(i, speed_noise, speeds, speed_factor, top_speed, bitgen)
+
+
+choose_leg = compiled(_choose_leg)
+_CHOICE_SCALARS = (types.int64, types.int64, types.float64)
+"""`choose_leg`'s leading argument types: robot, circuit, time"""
+
+
+def choice_entry(
+    task_fields: tuple[object, ...],
+    speed_noise: float,
+    speeds: np.ndarray,
+    speed_factor: np.ndarray,
+    top_speed: np.ndarray,
+    bitgen: np.ndarray,
+) -> Callable[[int, int, float], None]:
+    """`choose_leg` bound to an arena's arrays (`bound_entry`): `(robot, circuit, now)`."""
+    head = (float(speed_noise), speeds, speed_factor, top_speed, bitgen)
+    return bound_entry(choose_leg, _CHOICE_SCALARS, head, tuple(task_fields))
+
+
 def _end_services(
     t: TaskArrays,
     now: float,
@@ -1385,18 +1420,30 @@ _TICK_SCALARS = (types.int64, types.int64, *([types.float64] * 6), types.boolean
 happens to be an int where a time is expected cannot select an integer signature)"""
 
 
-def tick_loop(bound: tuple[object, ...]) -> Callable[..., Any]:
-    """`run_ticks` as called with `bound` (`TickArgs`, then the task rules' arrays) after its
-    leading scalars: a function of those scalars alone, calling the compiled entry of these
-    arguments' types directly (compiled, or loaded from the disk cache, here if need be): numba's
-    type dispatch over 81 arguments cost 1.5 us of the 2.5 a call took. Bind again when `bound`
-    changes."""
-    head, fields = bound[: len(TickArgs._fields)], bound[len(TickArgs._fields) :]
-    dispatcher: Any = run_ticks  # (numba's Dispatcher: `compiled` returns it as a callable)
+def bound_entry(
+    fn: Callable[..., Any],
+    scalars: tuple[Any, ...],
+    head: tuple[object, ...],
+    fields: tuple[object, ...],
+) -> Callable[..., Any]:
+    """Compiled `fn` as called with leading arguments of numba types `scalars`, then `head`, then
+    star arguments `fields`: a function of those scalars alone, calling the compiled entry of
+    these arguments' types directly (compiled, or loaded from the disk cache, here if need be),
+    without numba's type dispatch over every argument at every call. Bind again when `head` or
+    `fields` change."""
+    dispatcher: Any = fn  # (numba's Dispatcher: `compiled` returns it as a callable)
     typeof = dispatcher.typeof_pyval
     # (numba passes star arguments to the compiled code as one tuple, and types them so)
-    entry = dispatcher.compile((*_TICK_SCALARS, *(typeof(a) for a in head), typeof(fields)))
-    return lambda *scalars: entry(*scalars, *head, fields)
+    entry = dispatcher.compile((*scalars, *(typeof(a) for a in head), typeof(fields)))
+    return lambda *leading: entry(*leading, *head, fields)
+
+
+def tick_loop(bound: tuple[object, ...]) -> Callable[..., Any]:
+    """`run_ticks` as called with `bound` (`TickArgs`, then the task rules' arrays) after its
+    leading scalars (`bound_entry`: numba's type dispatch over 81 arguments cost 1.5 us of the
+    2.5 a call took). Bind again when `bound` changes."""
+    head, fields = bound[: len(TickArgs._fields)], bound[len(TickArgs._fields) :]
+    return bound_entry(run_ticks, _TICK_SCALARS, head, fields)
 
 
 def _replay_commands(

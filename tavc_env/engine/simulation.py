@@ -34,9 +34,9 @@ from tavc_env.engine.navigation import (
     Navigator,
     TickArgs,
     bit_generator_calls,
+    choice_entry,
     grid_scratch,
     neighbour_cell_m,
-    new_leg_speed,
     run_ticks,
     stuck_of,
     tick_loop,
@@ -105,6 +105,10 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     return view
 
 
+def _never_reset(robot: int, circuit: int, now: float) -> None:
+    raise ValueError("the simulation was never reset; allowed: call reset(rng) first")
+
+
 class Simulation:
     """One arena in motion. Call `reset(rng)` before use; `rng` drives every random draw.
 
@@ -138,6 +142,7 @@ class Simulation:
         )
         self._rng: np.random.Generator | None = None
         self._bitgen = np.zeros(0, np.int64)  # `bit_generator_calls(rng)` from `reset` on
+        self._choose_leg: Callable[[int, int, float], None] = _never_reset  # (`reset` binds it)
         self._speed_noise = float(config.speed_noise)
         self._observers: list[Observer] = []
         self._clear_episode()
@@ -205,23 +210,22 @@ class Simulation:
         self._anchor = self._pos.copy()
         self.heading = rng.uniform(-math.pi, math.pi, size=n)
         self._schedule = breakdown_schedule(cfg)
-
-    # -- decisions and failures ----------------------------------------------------------------
-    def choose(self, robot: int, circuit: int) -> None:
-        """A deciding robot starts a task on `circuit`."""
-        self._check_reset()
-        self.tasks.choose(robot, circuit, self.time_s)
-        self._new_leg(robot)
-
-    def _new_leg(self, robot: int) -> None:
-        new_leg_speed(
-            robot,
+        # (`TaskCycle.choose`, then the leg's speed, in one compiled call: the arrays it is
+        # bound to are made by this reset and replaced only by the next)
+        self._choose_leg = choice_entry(
+            self.tasks.arrays,
             self._speed_noise,
             self.speeds,
             self.speed_factor,
             self.top_speed,
             self._bitgen,
         )
+
+    # -- decisions and failures ----------------------------------------------------------------
+    def choose(self, robot: int, circuit: int) -> None:
+        """A deciding robot starts a task on `circuit`."""
+        self._check_reset()
+        self._choose_leg(robot, circuit, self.time_s)
 
     def break_down(self, robot: int) -> None:
         if self.tasks.phase[robot] == _BROKEN:
