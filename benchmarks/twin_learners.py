@@ -28,7 +28,8 @@ benchmarks/results/twin_learners_prediction/ (predict) or benchmarks/results/twi
 4. `test`: those physics trials (logged too), and agreement cell by cell.
 5. `family` and `search`: the search for the paper's condition (section 5 below).
 6. `gap`: why the twin misses dahl2004. Physics trials on fresh seeds, each paired with the same
-   seed on `TwinPaidEnv` (the physics, its learners paid the twin's task times), and the physics
+   seed on `tavc_env.twin.TwinPaidArenaEnv` (the physics, its learners paid the twin's task
+   times), and the physics
    task times among learners over the twin's cells by class, kind of task and period
    (`run_gap`; writes benchmarks/results/twin_gap/).
 
@@ -72,10 +73,6 @@ from tavc_agents.experiments.sweep import json_jobs
 from tavc_agents.learners.selection import Softmax
 from tavc_agents.learners.tavc import TavcLearner, TavcParams
 from tavc_agents.policy import Policy
-from tavc_env import ArenaConfig
-from tavc_env.engine.base import Advance
-from tavc_env.engine.simulation import Simulation
-from tavc_env.engine.tasks import Phase
 from tavc_env.twin import (
     InterferenceTables,
     ObservedTask,
@@ -83,11 +80,10 @@ from tavc_env.twin import (
     learner_tables,
     logged_tasks,
     switch_cost,
+    twin_paid_parallel_env,
 )
-from tavc_env.twin.engine import TaskTimeProcess
 
 Row = dict[str, Any]
-_DECIDING, _BROKEN = int(Phase.DECIDING), int(Phase.BROKEN)
 Stage = Literal["logs", "audit", "predict", "test", "family", "search", "gap"]
 
 
@@ -139,7 +135,7 @@ Engine = Literal["physics", "twin_fixed", "twin_learners", "physics_twin_paid"]
 ENGINES: tuple[Engine, ...] = ("physics", "twin_fixed", "twin_learners", "physics_twin_paid")
 """the physics, the twin with the fixed-allocation tables (`tavc_twin_v0`'s, the committed
 predictions'), the twin with the tables measured among learners, and the physics paying its
-learners with the twin's task times (`TwinPaidEnv`: stage `gap`)"""
+learners with the twin's task times (`tavc_env.twin.TwinPaidArenaEnv`: stage `gap`)"""
 
 
 @dataclass(frozen=True)
@@ -193,7 +189,11 @@ def run_log_trial(job: LogTrial) -> dict[str, Any]:
     if job.engine != "physics":
         assert job.tables is not None, "a twin trial needs its tables"
         tables = InterferenceTables.from_dict(job.tables)
-        env = TwinPaidEnv if job.engine == "physics_twin_paid" else tavc_env.twin_parallel_env
+        env = (
+            twin_paid_parallel_env
+            if job.engine == "physics_twin_paid"
+            else tavc_env.twin_parallel_env
+        )
         factory = functools.partial(env, tables=tables)
     result = run_trial(
         LEARNERS[job.condition].policy,
@@ -220,73 +220,6 @@ LOGS = json_jobs(
     omit=("tables",),
     added={"engine": "physics", "tables_sha256": "", "keep_log": True},
 )
-
-
-class TwinPaidSimulation(Simulation):
-    """The physics paying its learners as the twin does: robots move, queue and decide exactly as
-    in the physics, but each task reports a time drawn from `tables` for its cell at decision
-    (`TaskTimeProcess.task_time`: the class, the circuit, the robots of each class working there
-    once everyone deciding had chosen, switch and first task), so a learner's reward w / t is the
-    twin's. The draws come from a generator jumped ahead of the physics' own (2^127 steps), which
-    leaves the physics' draws untouched: a trial differs from its physics twin (same seed) only
-    through what its learners are paid."""
-
-    def __init__(
-        self, config: ArenaConfig, tables: InterferenceTables, jam_window_s: float
-    ) -> None:
-        super().__init__(config, jam_window_s=jam_window_s)
-        self.payer = TaskTimeProcess(config, tables)
-        self._classes = self.payer.robot_class
-        self._pay_rng: np.random.Generator | None = None
-        self._undrawn: list[tuple[int, bool]] = []
-        self._first = [True] * config.n_robots
-        self._paid = [math.nan] * config.n_robots
-
-    def reset(self, rng: np.random.Generator) -> None:
-        super().reset(rng)
-        self._pay_rng = np.random.Generator(rng.bit_generator.jumped())  # type: ignore[attr-defined]
-        self._undrawn = []
-        self._first = [True] * self.config.n_robots
-        self._paid = [math.nan] * self.config.n_robots
-
-    def choose(self, robot: int, circuit: int) -> None:
-        switch = int(self.tasks.circuit[robot]) != circuit
-        super().choose(robot, circuit)
-        self._undrawn.append((robot, switch))
-
-    def advance(self, max_duration_s: float, stop_on_decision: bool = True) -> Advance:
-        # drawn once everyone deciding has chosen: the twin's cell (`TaskTimeProcess._draw`)
-        if self._undrawn:
-            assert self._pay_rng is not None
-            phase, circuit = np.asarray(self.tasks.phase), np.asarray(self.tasks.circuit)
-            working = (phase != _DECIDING) & (phase != _BROKEN)
-            for i, switch in self._undrawn:
-                k = int(circuit[i])
-                counts = tuple(
-                    int(np.sum(working & (circuit == k) & (np.asarray(self._classes) == c)))
-                    for c in range(len(self.payer.classes))
-                )
-                self._paid[i] = self.payer.task_time(
-                    self._classes[i], k, counts, switch, self._first[i], self._pay_rng
-                )
-                self._first[i] = False
-            self._undrawn = []
-        out = super().advance(max_duration_s, stop_on_decision)
-        out.completions = [
-            dataclasses.replace(c, task_time_s=self._paid[c.robot]) for c in out.completions
-        ]
-        return out
-
-
-class TwinPaidEnv(tavc_env.TavcArenaEnv):
-    """The physics env on `TwinPaidSimulation`: `tavc_v0` whose rewards are the twin's."""
-
-    def __init__(self, tables: InterferenceTables, **env_kwargs: Any) -> None:
-        self.tables = tables
-        super().__init__(**env_kwargs)
-
-    def _new_engine(self) -> Simulation:
-        return TwinPaidSimulation(self.config, self.tables, self.options.jam_window_s)
 
 
 # -- what a log says ------------------------------------------------------------------------------
@@ -1346,7 +1279,7 @@ def gap_body(s: Settings, n: int, rows: Sequence[Row], residuals: Sequence[Row])
             "",
             f"Each cell runs {n} pairs of physics trials on fresh seeds ({GAP_FIRST_SEED} on; the "
             "committed studies use seeds below 1500): the physics as it is, and the same seed on "
-            "`TwinPaidEnv`, where robots move and decide as in the physics but every task's "
+            "`tavc_env.twin.TwinPaidArenaEnv`, where robots move and decide as in the physics but every task's "
             "reward is paid with a time drawn from the twin's learner tables for its cell at "
             "decision. Same seed, same start and same first choices; the trials part once the "
             "first rewards differ. The pairs follow from 80 % power for a paired difference of "

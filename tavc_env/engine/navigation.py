@@ -959,7 +959,6 @@ def _new_leg_speed(
 
 
 _new_leg_speed_c = compiled(_new_leg_speed, inline=True)
-new_leg_speed = _new_leg_speed_c
 
 
 def _choose_leg(

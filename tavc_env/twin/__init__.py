@@ -87,7 +87,8 @@ are predicted more closely (the regime map).
 ## Where
 
 `tables` (the tables), `measure` (measuring them in the physics: `build_tables`), `engine`
-(`TaskTimeProcess`), `env` (`TwinArenaEnv`); every public name is importable from
+(`TaskTimeProcess`), `env` (`TwinArenaEnv`), `paid` (`TwinPaidArenaEnv`: the physics paying its
+learners the twin's task times, a diagnostic of the twin); every public name is importable from
 `tavc_env.twin` itself. The learner-aware batched twin is `tavc_agents.experiments.twin_batch`.
 """
 
@@ -110,6 +111,12 @@ from tavc_env.twin.measure import (
     random_allocation_run,
     switch_cost,
 )
+from tavc_env.twin.paid import (
+    TWIN_PAID_ENV_NAME,
+    TwinPaidArenaEnv,
+    TwinPaidSimulation,
+    twin_paid_parallel_env,
+)
 from tavc_env.twin.tables import (
     CellKey,
     InterferenceTables,
@@ -122,6 +129,7 @@ from tavc_env.twin.tables import (
 __all__ = [
     "REFERENCE_PRESET",
     "TWIN_ENV_NAME",
+    "TWIN_PAID_ENV_NAME",
     "CellKey",
     "InterferenceTables",
     "ObservedTask",
@@ -129,6 +137,8 @@ __all__ = [
     "TaskTimeCell",
     "TaskTimeProcess",
     "TwinArenaEnv",
+    "TwinPaidArenaEnv",
+    "TwinPaidSimulation",
     "TwinTasks",
     "allocation_for",
     "build_tables",
@@ -140,6 +150,7 @@ __all__ = [
     "required_cells",
     "switch_cost",
     "team_classes",
+    "twin_paid_parallel_env",
     "twin_parallel_env",
 ]
 

@@ -106,33 +106,6 @@ def test_the_search_maps_its_eight_cells_and_decides_by_its_rule(tmp_path: Path)
         assert plan[0]["first_seed"] == study.SEARCH_FIRST_SEED
 
 
-def test_the_twin_paid_physics_moves_as_the_physics_and_pays_as_the_twin() -> None:
-    """`TwinPaidEnv` (stage `gap`): under the same seed and actions the robots are where the
-    physics puts them, tick for tick, while each completed task pays w / t with t the twin's draw
-    for its cell, not the task's real time."""
-    import numpy as np
-
-    import tavc_env
-
-    tables = study.learned_tables("dahl2004", study.Settings(stage="gap"))
-    paid = study.TwinPaidEnv(tables=tables, preset="dahl2004")
-    physics = tavc_env.parallel_env(preset="dahl2004")
-    paid.reset(seed=5)
-    physics.reset(seed=5)
-    differ = 0
-    for step in range(40):
-        actions = {
-            a: (i + step // 7) % 2 for i, a in enumerate(physics.agents) if physics.must_decide(a)
-        }
-        _, r_paid, *_ = paid.step(actions)
-        _, r_physics, *_ = physics.step(actions)
-        assert np.array_equal(paid.sim.positions(), physics.sim.positions())
-        for a, r in r_physics.items():
-            assert (r > 0) == (r_paid[a] > 0)
-            differ += r != r_paid[a]
-    assert differ >= 10
-
-
 def test_the_gap_stage_runs_its_pairs(tmp_path: Path) -> None:
     """`--stage gap` on a short run: every cell's pairs, and the residual table of the committed
     logs at T = 0.005 for the arenas of its cells."""

@@ -440,3 +440,45 @@ def test_a_copy_mid_episode_has_the_originals_future(how: str) -> None:
         assert repr(a_out) == repr(b_out)
         obs, infos = a_out[0], a_out[4]
     assert copied.sim_time_s == env.sim_time_s
+
+
+# -- the physics paid as the twin pays -------------------------------------------------------------
+def test_the_twin_paid_physics_moves_as_the_physics_and_pays_the_twins_times() -> None:
+    """`twin_paid_parallel_env`: under the same seed and actions the robots are where the physics
+    puts them, tick for tick, and complete the same tasks; each completed task reports the
+    twin's time for its cell (tables without spread: the cell's mean, times the switch cost for
+    a first task that left its start circuit) and pays w / t with it."""
+    tables = tables_for(DAHL, sd=0.0)
+    paid = tavc_env.twin.twin_paid_parallel_env(tables=tables, config=DAHL, max_sim_time_s=1800.0)
+    physics = tavc_env.parallel_env(config=DAHL, max_sim_time_s=1800.0)
+    agents = physics.possible_agents
+    allocation = {a: i % 2 for i, a in enumerate(agents)}
+    classes = [r.speed_class for r in DAHL.robots]
+    on = {
+        k: tuple(
+            sum(allocation[a] == k and classes[i] == c for i, a in enumerate(agents))
+            for c in tables.classes
+        )
+        for k in (0, 1)
+    }
+    values = [c.value for c in DAHL.circuits]
+    _, infos = physics.reset(seed=3)
+    paid.reset(seed=3)
+    physics_times, paid_times = [], []
+    while physics.agents:
+        actions = {a: allocation[a] for a in agents if infos[a]["action_required"]}
+        _, _, _, _, infos = physics.step(actions)
+        _, rewards, _, _, paid_infos = paid.step(actions)
+        assert np.array_equal(paid.sim.positions(), physics.sim.positions())
+        for i, a in enumerate(agents):
+            t = completed_task_s(paid_infos[a])
+            assert (t is None) == (completed_task_s(infos[a]) is None)
+            if t is None:
+                continue
+            k = paid_infos[a]["circuit"]
+            mean = mean_of(k, on[k], classes[i])
+            assert t == pytest.approx(mean) or t == pytest.approx(mean * SWITCH)
+            assert rewards[a] == pytest.approx(values[k] / (t * 1000.0))
+            paid_times.append(t)
+            physics_times.append(completed_task_s(infos[a]))
+    assert len(paid_times) >= 20 and paid_times != physics_times
