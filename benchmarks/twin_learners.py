@@ -1203,8 +1203,41 @@ def run_gap(s: Settings) -> Outcome:
         rows,
         summary={"cells": rows, "residuals": residuals, "pairs_per_cell": n},
     )
+    report.figures.append((GAP_FIGURE, lambda path: draw_gap(path, rows)))
     written = report.write(out, provenance)
     return Outcome(out, [out / "gap_residuals.csv", *written], body.split("## Method")[0])
+
+
+GAP_FIGURE = "gap.png"
+GAP_SERIES = (
+    ("physics", "physics", "o", "black"),
+    ("twin_paid", "physics paid as the twin pays", "s", "tab:red"),
+    ("twin", "twin among learners", "^", "tab:blue"),
+)
+"""(row field, label, marker, colour) of the gap figure's series"""
+
+
+def draw_gap(path: Path, rows: Sequence[Row]) -> None:
+    """Per gap cell, fast - slow in the physics, in the physics paid as the twin pays, and in the
+    twin; 95 % intervals."""
+    fig, ax = subplots(figsize=(6.4, 3.4))
+    for k, (field_name, label, marker, colour) in enumerate(GAP_SERIES):
+        x = np.arange(len(rows)) + 0.15 * (k - 1)
+        m = np.array([r[field_name] for r in rows])
+        err = [
+            m - [r[f"{field_name}_low"] for r in rows],
+            [r[f"{field_name}_high"] for r in rows] - m,
+        ]
+        ax.errorbar(x, m, yerr=err, fmt=marker, ms=5, color=colour, label=label)
+    ax.axhline(0.0, color="black", lw=0.6)
+    ax.set_xticks(
+        np.arange(len(rows)),
+        [f"{r['arena']}\nT = {LEARNERS[r['condition']].temperature:g}" for r in rows],
+    )
+    ax.set_ylabel("fast - slow (hours 15-20)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, format="png")
 
 
 def gap_body(s: Settings, n: int, rows: Sequence[Row], residuals: Sequence[Row]) -> str:
