@@ -61,6 +61,12 @@ class TwinPaidSimulation(Simulation):
         super().choose(robot, circuit)
         self._undrawn.append((robot, switch))
 
+    def pay(self, robot: int, circuit: int, switch: bool, first: bool, drawn_s: float) -> float:
+        """The time `robot`'s task, just decided on `circuit` (at `time_s`), will report, from
+        the twin's draw `drawn_s`: the draw itself. A hook for a subclass that pays otherwise
+        (e.g. by when or how the task was decided)."""
+        return drawn_s
+
     def advance(self, max_duration_s: float, stop_on_decision: bool = True) -> Advance:
         # drawn once everyone deciding has chosen: the twin's cell (`TaskTimeProcess._draw`)
         if self._undrawn:
@@ -73,9 +79,10 @@ class TwinPaidSimulation(Simulation):
                 counts = tuple(
                     int(np.sum(here & (self._classes == c))) for c in range(len(self.payer.classes))
                 )
-                self._paid[i] = self.payer.task_time(
+                drawn = self.payer.task_time(
                     int(self._classes[i]), k, counts, switch, self._first[i], self._pay_rng
                 )
+                self._paid[i] = self.pay(i, k, switch, self._first[i], drawn)
                 self._first[i] = False
             self._undrawn = []
         out = super().advance(max_duration_s, stop_on_decision)

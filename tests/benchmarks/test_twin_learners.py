@@ -117,3 +117,56 @@ def test_the_gap_stage_runs_its_pairs(tmp_path: Path) -> None:
     arenas = {r["arena"] for r in summary["residuals"]}
     assert arenas == {a for a, _ in study.GAP_CELLS}
     assert all(r["n"] >= 26 for r in summary["residuals"])
+
+
+def test_the_corrected_pay_multiplies_the_twins_draw_by_its_factor() -> None:
+    """`CorrectedPayEnv` (stage `gap`): the same seed and actions as the twin-paid physics give
+    the same motion and draws; a task after a robot's first reports its draw times the factor of
+    its class, kind and period (here 2 for fast robots' stays on the high-value circuit and 3
+    for every other task decided in the first hour, none later), a first task its draw."""
+    import numpy as np
+    import pytest
+
+    import tavc_env
+    from tavc_env import completed_task_s
+
+    tables = study.learned_tables("dahl2004", study.Settings(stage="gap"))
+
+    def factor_of(cls: str, kind: str) -> float:
+        return 2.0 if (cls, kind) == ("fast", "stay high") else 3.0
+
+    kinds = ("stay high", "stay low", "into high", "into low")
+    factors = [(c, k, 0, factor_of(c, k)) for c in tables.classes for k in kinds]
+    limits = {"preset": "dahl2004", "max_sim_time_s": 5400.0}
+    corrected = study.CorrectedPayEnv(tables, factors, **limits)
+    paid = tavc_env.twin.twin_paid_parallel_env(tables=tables, **limits)
+    _, infos = paid.reset(seed=4)
+    corrected.reset(seed=4)
+    agents, classes = paid.possible_agents, [r.speed_class for r in paid.config.robots]
+    high = int(np.argmax([c.value for c in paid.config.circuits]))
+    last = {a: int(infos[a]["circuit"]) for a in agents}
+    task_of: dict[str, tuple[float, int]] = {}  # agent -> (decided at, circuit before)
+    firsts, checked, step = set(agents), 0, 0
+    while paid.agents:
+        wanted = {a: (i + step // 5) % 2 for i, a in enumerate(agents)}
+        actions = {a: wanted[a] for a in agents if infos[a]["action_required"]}
+        for a, c in actions.items():
+            task_of[a], last[a] = (paid.sim_time_s, last[a]), c
+        _, _, _, _, infos = paid.step(actions)
+        _, _, _, _, mine = corrected.step(actions)
+        step += 1
+        assert np.array_equal(paid.sim.positions(), corrected.sim.positions())
+        for i, a in enumerate(agents):
+            t = completed_task_s(infos[a])
+            if t is None:
+                continue
+            at_s, before = task_of[a]
+            circuit = infos[a]["circuit"]
+            kind = ("stay " if before == circuit else "into ") + (
+                "high" if circuit == high else "low"
+            )
+            factor = 1.0 if a in firsts or at_s >= 3600.0 else factor_of(classes[i], kind)
+            firsts.discard(a)
+            assert completed_task_s(mine[a]) == pytest.approx(t * factor, rel=1e-12)
+            checked += factor != 1.0
+    assert checked >= 10
