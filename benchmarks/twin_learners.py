@@ -1298,9 +1298,9 @@ GAP_SERIES = (
 
 
 def draw_gap(path: Path, rows: Sequence[Row]) -> None:
-    """Per gap cell, fast - slow in the physics, in the physics paid as the twin pays, and in the
-    twin; 95 % intervals."""
-    fig, ax = subplots(figsize=(6.4, 3.4))
+    """Per gap cell, fast - slow in the physics, in the physics paid as the twin pays (without and
+    with the measured factors), and in the twin; 95 % intervals."""
+    fig, ax = subplots(figsize=(8.6, 3.4))
     for k, (field_name, label, marker, colour) in enumerate(GAP_SERIES):
         x = np.arange(len(rows)) + 0.12 * (k - 1.5)
         m = np.array([r[field_name] for r in rows])
@@ -1315,7 +1315,7 @@ def draw_gap(path: Path, rows: Sequence[Row]) -> None:
         [f"{r['arena']}\nT = {LEARNERS[r['condition']].temperature:g}" for r in rows],
     )
     ax.set_ylabel("fast - slow (hours 15-20)")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     fig.savefig(path, dpi=120, format="png")
 
