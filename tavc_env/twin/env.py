@@ -14,7 +14,7 @@ from tavc_env.env import ArenaEnv
 from tavc_env.observations import N_PHASES
 from tavc_env.options import resolve_env_args
 from tavc_env.twin.engine import TaskTimeProcess
-from tavc_env.twin.tables import InterferenceTables
+from tavc_env.twin.tables import InterferenceTables, as_tables
 from tavc_env.validation import require
 
 TWIN_ENV_NAME = "tavc_twin_v0"
@@ -46,14 +46,7 @@ class TwinArenaEnv(ArenaEnv[TaskTimeProcess]):
         tables: InterferenceTables | Mapping[str, Any],
         **env_kwargs: Any,
     ) -> None:
-        if isinstance(tables, Mapping):
-            tables = InterferenceTables.from_dict(tables)
-        require(
-            isinstance(tables, InterferenceTables),
-            "tables",
-            tables,
-            "tavc_env.twin.InterferenceTables (or its to_dict())",
-        )
+        tables = as_tables(tables)
         # the env's own arguments and defaults, resolved as the physics env resolves them
         config, options = resolve_env_args(**env_kwargs)
         require(

@@ -26,8 +26,7 @@ from tavc_env.engine.simulation import Simulation
 from tavc_env.engine.tasks import Phase
 from tavc_env.env import TavcArenaEnv
 from tavc_env.twin.engine import TaskTimeProcess
-from tavc_env.twin.tables import InterferenceTables
-from tavc_env.validation import require
+from tavc_env.twin.tables import InterferenceTables, as_tables
 
 TWIN_PAID_ENV_NAME = "tavc_twin_paid_v0"
 _DECIDING, _BROKEN = int(Phase.DECIDING), int(Phase.BROKEN)
@@ -104,15 +103,7 @@ class TwinPaidArenaEnv(TavcArenaEnv):
     metadata: ClassVar[dict[str, Any]] = {**TavcArenaEnv.metadata, "name": TWIN_PAID_ENV_NAME}
 
     def __init__(self, tables: InterferenceTables | Mapping[str, Any], **env_kwargs: Any) -> None:
-        if isinstance(tables, Mapping):
-            tables = InterferenceTables.from_dict(tables)
-        require(
-            isinstance(tables, InterferenceTables),
-            "tables",
-            tables,
-            "tavc_env.twin.InterferenceTables (or its to_dict())",
-        )
-        self.tables = tables
+        self.tables = as_tables(tables)
         super().__init__(**env_kwargs)
 
     def _new_engine(self) -> Simulation:

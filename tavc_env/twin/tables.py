@@ -417,3 +417,18 @@ def _keys(
         f"the keys {list(required)} (optional: {list(optional)}); missing {missing}, "
         f"unknown {unknown}",
     )
+
+
+def as_tables(tables: object) -> InterferenceTables:
+    """`tables` as `InterferenceTables`: the tables themselves, or their `to_dict()` (checked);
+    anything else is a ValueError naming what is allowed."""
+    if isinstance(tables, Mapping):
+        tables = InterferenceTables.from_dict(tables)
+    require(
+        isinstance(tables, InterferenceTables),
+        "tables",
+        tables,
+        "tavc_env.twin.InterferenceTables (or its to_dict())",
+    )
+    assert isinstance(tables, InterferenceTables)
+    return tables
