@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import itertools
 import math
 import sys
 import time
@@ -1158,34 +1159,47 @@ def task_kind(task: ObservedTask, high: int) -> str:
     return f"into {where}" if task.switch else f"stay {where}"
 
 
-def cell_residuals(
-    arena: str, results: Sequence[Mapping[str, Any]], tables: InterferenceTables
-) -> list[Row]:
-    """Per class, kind of task (`task_kind`) and period (`GAP_PERIODS_H`), the physics task time
-    over what the twin draws for its cell on average (the cell's mean, times the class's switch
-    cost for a switch), tasks after each robot's first: mean per trial, then mean and 95 %
-    interval over trials."""
-    config = arena_runs.arena_config(arena)
-    high = int(np.argmax([c.value for c in config.circuits]))
-    per_trial: dict[tuple[str, str, int], list[float]] = {}
-    for r in results:
-        log = r["log"]
-        deliveries = zip(
+def paid_ratios(
+    arena: str, result: Mapping[str, Any], tables: InterferenceTables
+) -> list[tuple[ObservedTask, int, float, float]]:
+    """Each task of a logged trial after its robot's first: the task, its robot, when it was
+    delivered, and its time over what the twin draws for its cell on average (the cell's mean,
+    times the class's switch cost for a switch)."""
+    log = result["log"]
+    deliveries = sorted(
+        zip(
             log["delivery_time_s"],
             log["delivery_robot"],
             log["delivery_circuit"],
             log["delivery_task_time_s"],
-        )  # in `logged_tasks`' order (sorted), so task k is decided at decided[k]
-        decided = [done - task_s for done, _, _, task_s in sorted(deliveries)]
+        )
+    )  # `logged_tasks`' order: task k is delivery k
+    out = []
+    for task, (done, robot, _, _) in zip(trial_tasks(arena, result), deliveries):
+        if task.first:
+            continue
+        expected = tables.cell(task.circuit, task.counts, task.robot_class).mean_s
+        if task.switch:
+            expected *= tables.class_switch_cost(task.robot_class)
+        out.append((task, int(robot), float(done), task.task_time_s / expected))
+    return out
+
+
+def cell_residuals(
+    arena: str, results: Sequence[Mapping[str, Any]], tables: InterferenceTables
+) -> list[Row]:
+    """Per class, kind of task (`task_kind`) and period (`GAP_PERIODS_H`, by when it was
+    decided), the physics task time over what the twin draws for its cell on average
+    (`paid_ratios`): mean per trial, then mean and 95 % interval over trials."""
+    config = arena_runs.arena_config(arena)
+    high = int(np.argmax([c.value for c in config.circuits]))
+    per_trial: dict[tuple[str, str, int], list[float]] = {}
+    for r in results:
         ratios: dict[tuple[str, str, int], list[float]] = {}
-        for task, at_s in zip(trial_tasks(arena, r), decided):
-            if task.first:
-                continue
-            expected = tables.cell(task.circuit, task.counts, task.robot_class).mean_s
-            if task.switch:
-                expected *= tables.class_switch_cost(task.robot_class)
-            key = (task.robot_class, task_kind(task, high), period_of(at_s))
-            ratios.setdefault(key, []).append(task.task_time_s / expected)
+        for task, _, done, ratio in paid_ratios(arena, r, tables):
+            decided = done - task.task_time_s
+            key = (task.robot_class, task_kind(task, high), period_of(decided))
+            ratios.setdefault(key, []).append(ratio)
         for key, values in ratios.items():
             per_trial.setdefault(key, []).append(float(np.mean(values)))
     rows = []
@@ -1202,6 +1216,42 @@ def cell_residuals(
             )
         )
     return rows
+
+
+CONVOY_WINDOW_S = 30.0
+"""two deliveries on one circuit this close in time, by different robots, count as one behind
+the other (a dock's service and a short queue's step take about this long)"""
+
+
+def convoy_correlations(
+    arena: str, results: Sequence[Mapping[str, Any]], tables: InterferenceTables
+) -> list[Row]:
+    """Per pair of classes (a robot's delivery, then the next delivery on the same circuit, by
+    another robot within `CONVOY_WINDOW_S`), the correlation of the two tasks' log time over the
+    twin's mean (`paid_ratios`): per trial (10 pairs or more), then the mean and 95 % interval over
+    trials, with the pairs in all. The twin draws every task on its own: 0 there by
+    construction."""
+    per_trial: dict[str, list[float]] = {}
+    counted: dict[str, int] = {}
+    for r in results:
+        on: dict[int, list[tuple[float, int, str, float]]] = {}
+        for task, robot, done, ratio in paid_ratios(arena, r, tables):
+            on.setdefault(task.circuit, []).append((done, robot, task.robot_class, math.log(ratio)))
+        pairs: dict[str, list[tuple[float, float]]] = {}
+        for items in on.values():
+            items.sort()
+            for (d0, r0, c0, x0), (d1, r1, c1, x1) in itertools.pairwise(items):
+                if r0 != r1 and d1 - d0 <= CONVOY_WINDOW_S:
+                    pairs.setdefault(f"{c0}, then {c1}", []).append((x0, x1))
+        for kind, xy in pairs.items():
+            counted[kind] = counted.get(kind, 0) + len(xy)
+            if len(xy) >= 10:
+                x = np.array(xy)
+                per_trial.setdefault(kind, []).append(float(np.corrcoef(x[:, 0], x[:, 1])[0, 1]))
+    return [
+        _ci_row(v, arena=arena, pair=kind, pairs=counted[kind])
+        for kind, v in sorted(per_trial.items())
+    ]
 
 
 def run_gap(s: Settings) -> Outcome:
@@ -1273,18 +1323,26 @@ def run_gap(s: Settings) -> Outcome:
             row |= {name: m, f"{name}_low": lo, f"{name}_high": hi, f"{name}_n": count}
         row["pair_correlation"] = float(np.corrcoef(true, paid)[0, 1])
         rows.append(row)
+    convoys = [
+        row
+        for (a, c), logged in physics_logs(s).items()
+        if c == "softmax_T0.005" and a in tables
+        for row in convoy_correlations(a, logged, tables[a])
+    ]
     write_csv(out / "gap_residuals.csv", residuals)
-    body = gap_body(s, n, rows, residuals)
+    write_csv(out / "gap_convoys.csv", convoys)
+    body = gap_body(s, n, rows, residuals, convoys)
     report = Report(
         "gap",
         "Why the twin misses dahl2004: the physics paid as the twin pays",
         body,
         rows,
-        summary={"cells": rows, "residuals": residuals, "pairs_per_cell": n},
+        summary={"cells": rows, "residuals": residuals, "convoys": convoys, "pairs_per_cell": n},
     )
     report.figures.append((GAP_FIGURE, lambda path: draw_gap(path, rows)))
     written = report.write(out, provenance)
-    return Outcome(out, [out / "gap_residuals.csv", *written], body.split("## Method")[0])
+    csvs = [out / "gap_residuals.csv", out / "gap_convoys.csv"]
+    return Outcome(out, [*csvs, *written], body.split("## Method")[0])
 
 
 GAP_FIGURE = "gap.png"
@@ -1320,7 +1378,13 @@ def draw_gap(path: Path, rows: Sequence[Row]) -> None:
     fig.savefig(path, dpi=120, format="png")
 
 
-def gap_body(s: Settings, n: int, rows: Sequence[Row], residuals: Sequence[Row]) -> str:
+def gap_body(
+    s: Settings,
+    n: int,
+    rows: Sequence[Row],
+    residuals: Sequence[Row],
+    convoys: Sequence[Row],
+) -> str:
     def ci(r: Row, name: str) -> str:
         return fmt_ci(r[name], r[f"{name}_low"], r[f"{name}_high"], 3)
 
@@ -1374,6 +1438,13 @@ def gap_body(s: Settings, n: int, rows: Sequence[Row], residuals: Sequence[Row])
             for r in residuals
         ],
     )
+    convoy_table = markdown_table(
+        ["arena", "deliveries, one right behind the other", "pairs", "correlation (95 % CI)"],
+        [
+            [r["arena"], r["pair"], r["pairs"], fmt_ci(r["mean"], r["low"], r["high"], 3)]
+            for r in convoys
+        ],
+    )
     return "\n".join(
         [
             "## Result",
@@ -1391,6 +1462,15 @@ def gap_body(s: Settings, n: int, rows: Sequence[Row], residuals: Sequence[Row])
             "trials):",
             "",
             residual_table,
+            "",
+            "## How task times hang together",
+            "",
+            "Two deliveries on one circuit by different robots at most "
+            f"{CONVOY_WINDOW_S:g} s apart, in the same logged trials: the correlation of the two "
+            "tasks' log time over the twin's mean (per trial with 10 pairs or more, then the mean "
+            "over trials; the twin draws each task on its own, so 0 there):",
+            "",
+            convoy_table,
             "",
             "## Method",
             "",

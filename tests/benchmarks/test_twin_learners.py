@@ -117,6 +117,14 @@ def test_the_gap_stage_runs_its_pairs(tmp_path: Path) -> None:
     arenas = {r["arena"] for r in summary["residuals"]}
     assert arenas == {a for a, _ in study.GAP_CELLS}
     assert all(r["n"] >= 26 for r in summary["residuals"])
+    pairs = {(r["arena"], r["pair"]) for r in summary["convoys"]}
+    assert pairs == {
+        (a, f"{c0}, then {c1}")
+        for a in arenas
+        for c0 in ("fast", "slow")
+        for c1 in ("fast", "slow")
+    }
+    assert all(-1.0 <= r["mean"] <= 1.0 and r["pairs"] >= 10 for r in summary["convoys"])
 
 
 def test_the_corrected_pay_multiplies_the_twins_draw_by_its_factor() -> None:
