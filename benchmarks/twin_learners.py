@@ -78,6 +78,7 @@ from tavc_env import Simulation
 from tavc_env.twin import (
     InterferenceTables,
     ObservedTask,
+    TwinPaidArenaEnv,
     TwinPaidSimulation,
     first_tasks,
     learner_tables,
@@ -257,14 +258,16 @@ class CorrectedPaySimulation(TwinPaidSimulation):
     def pay(self, robot: int, circuit: int, switch: bool, first: bool, drawn_s: float) -> float:
         if first:
             return drawn_s
-        where = "high" if circuit == self.high else "low"
-        kind = f"into {where}" if switch else f"stay {where}"
-        period = period_of(self.time_s)
-        return drawn_s * self.factors.get((self.robot_classes[robot], kind, period), 1.0)
+        key = (
+            self.robot_classes[robot],
+            task_kind(circuit, switch, self.high),
+            period_of(self.time_s),
+        )
+        return drawn_s * self.factors.get(key, 1.0)
 
 
-class CorrectedPayEnv(tavc_env.TavcArenaEnv):
-    """The physics env on `CorrectedPaySimulation`."""
+class CorrectedPayEnv(TwinPaidArenaEnv):
+    """`TwinPaidArenaEnv` on `CorrectedPaySimulation`."""
 
     def __init__(
         self,
@@ -272,8 +275,8 @@ class CorrectedPayEnv(tavc_env.TavcArenaEnv):
         factors: Sequence[tuple[str, str, int, float]],
         **env_kwargs: Any,
     ) -> None:
-        self.tables, self.factors = tables, factors
-        super().__init__(**env_kwargs)
+        self.factors = factors
+        super().__init__(tables, **env_kwargs)
 
     def _new_engine(self) -> Simulation:
         return CorrectedPaySimulation(
@@ -1153,10 +1156,11 @@ def period_of(decided_s: float) -> int:
     return next(k for k, (a, b) in enumerate(GAP_PERIODS_H) if decided_s < b * 3600.0)
 
 
-def task_kind(task: ObservedTask, high: int) -> str:
-    """What kind of task: staying on or switching into the high-value circuit or the others."""
-    where = "high" if task.circuit == high else "low"
-    return f"into {where}" if task.switch else f"stay {where}"
+def task_kind(circuit: int, switch: bool, high: int) -> str:
+    """What kind of task: staying on or switching into the high-value circuit (`high`) or the
+    others."""
+    where = "high" if circuit == high else "low"
+    return f"into {where}" if switch else f"stay {where}"
 
 
 def paid_ratios(
@@ -1185,20 +1189,23 @@ def paid_ratios(
     return out
 
 
-def cell_residuals(
-    arena: str, results: Sequence[Mapping[str, Any]], tables: InterferenceTables
-) -> list[Row]:
+PaidRatios = Sequence[tuple[ObservedTask, int, float, float]]
+"""one logged trial's `paid_ratios`"""
+
+
+def cell_residuals(arena: str, trials: Sequence[PaidRatios]) -> list[Row]:
     """Per class, kind of task (`task_kind`) and period (`GAP_PERIODS_H`, by when it was
-    decided), the physics task time over what the twin draws for its cell on average
-    (`paid_ratios`): mean per trial, then mean and 95 % interval over trials."""
+    decided), the physics task time over what the twin draws for its cell on average (each
+    trial's `paid_ratios`): mean per trial, then mean and 95 % interval over trials."""
     config = arena_runs.arena_config(arena)
     high = int(np.argmax([c.value for c in config.circuits]))
     per_trial: dict[tuple[str, str, int], list[float]] = {}
-    for r in results:
+    for trial in trials:
         ratios: dict[tuple[str, str, int], list[float]] = {}
-        for task, _, done, ratio in paid_ratios(arena, r, tables):
+        for task, _, done, ratio in trial:
             decided = done - task.task_time_s
-            key = (task.robot_class, task_kind(task, high), period_of(decided))
+            kind = task_kind(task.circuit, task.switch, high)
+            key = (task.robot_class, kind, period_of(decided))
             ratios.setdefault(key, []).append(ratio)
         for key, values in ratios.items():
             per_trial.setdefault(key, []).append(float(np.mean(values)))
@@ -1223,19 +1230,17 @@ CONVOY_WINDOW_S = 30.0
 the other (a dock's service and a short queue's step take about this long)"""
 
 
-def convoy_correlations(
-    arena: str, results: Sequence[Mapping[str, Any]], tables: InterferenceTables
-) -> list[Row]:
+def convoy_correlations(arena: str, trials: Sequence[PaidRatios]) -> list[Row]:
     """Per pair of classes (a robot's delivery, then the next delivery on the same circuit, by
     another robot within `CONVOY_WINDOW_S`), the correlation of the two tasks' log time over the
-    twin's mean (`paid_ratios`): per trial (10 pairs or more), then the mean and 95 % interval over
-    trials, with the pairs in all. The twin draws every task on its own: 0 there by
-    construction."""
+    twin's mean (each trial's `paid_ratios`): per trial (10 pairs or more), then the mean and
+    95 % interval over trials, with the pairs in all. The twin draws every task on its own: 0
+    there by construction."""
     per_trial: dict[str, list[float]] = {}
     counted: dict[str, int] = {}
-    for r in results:
+    for trial in trials:
         on: dict[int, list[tuple[float, int, str, float]]] = {}
-        for task, robot, done, ratio in paid_ratios(arena, r, tables):
+        for task, robot, done, ratio in trial:
             on.setdefault(task.circuit, []).append((done, robot, task.robot_class, math.log(ratio)))
         pairs: dict[str, list[tuple[float, float]]] = {}
         for items in on.values():
@@ -1258,12 +1263,13 @@ def run_gap(s: Settings) -> Outcome:
     out = s.out_dir()
     n = gap_trials(s)
     tables = {a: learned_tables(a, s) for a in dict.fromkeys(a for a, _ in GAP_CELLS)}
-    residuals = [
-        row
-        for (a, c), logged in physics_logs(s).items()
+    # the audit's logged physics trials at T = 0.005, each task's time over the twin's mean
+    logged = {
+        a: [paid_ratios(a, r, tables[a]) for r in results]
+        for (a, c), results in physics_logs(s).items()
         if c == "softmax_T0.005" and a in tables
-        for row in cell_residuals(a, logged, tables[a])
-    ]
+    }
+    residuals = [row for a, trials in logged.items() for row in cell_residuals(a, trials)]
     factors = {
         a: tuple(
             (r["robot_class"], r["kind"], int(r["period"]), float(r["mean"]))
@@ -1323,12 +1329,7 @@ def run_gap(s: Settings) -> Outcome:
             row |= {name: m, f"{name}_low": lo, f"{name}_high": hi, f"{name}_n": count}
         row["pair_correlation"] = float(np.corrcoef(true, paid)[0, 1])
         rows.append(row)
-    convoys = [
-        row
-        for (a, c), logged in physics_logs(s).items()
-        if c == "softmax_T0.005" and a in tables
-        for row in convoy_correlations(a, logged, tables[a])
-    ]
+    convoys = [row for a, trials in logged.items() for row in convoy_correlations(a, trials)]
     write_csv(out / "gap_residuals.csv", residuals)
     write_csv(out / "gap_convoys.csv", convoys)
     body = gap_body(s, n, rows, residuals, convoys)
